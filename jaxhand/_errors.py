@@ -1,0 +1,19 @@
+"""Errors raised by jaxhand at its boundaries (files, CLI arguments, user arrays)."""
+
+__all__ = ["JaxhandError", "ModelFileError", "InputError", "CameraError"]
+
+
+class JaxhandError(Exception):
+    """Base class of every error jaxhand raises on purpose."""
+
+
+class ModelFileError(JaxhandError, ValueError):
+    """A model file or model dictionary is malformed; the message names file, frame and field."""
+
+
+class CameraError(JaxhandError, ValueError):
+    """A camera description is malformed."""
+
+
+class InputError(JaxhandError, ValueError):
+    """A user-supplied array, pose or argument has the wrong shape, dtype or value."""

@@ -1,0 +1,221 @@
+"""Forward kinematics: q -> frame poses, link axes, tips and pill ends, in world, camera and pixels.
+
+All functions are pure and jit-compatible; :func:`forward` and :func:`project_pose` are the
+jitted entry points. The tree is composed one depth level at a time (a static loop unrolled
+while tracing), so one compiled program serves every model of the same structure.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from ._errors import InputError
+from .camera import Camera
+from .model import Model
+
+__all__ = ["dh_transform", "dh_transforms", "quat_to_rotation", "base_pose", "frame_poses", "Pose", "View",
+           "forward", "project_pose", "views", "link_points", "validate_q", "random_q", "clip_q",
+           "normalize_q"]
+
+
+def dh_transform(alpha, a, d, theta):
+    """Craig's modified DH link transform (thesis eq. 2.1): RotX(alpha) TransX(a) RotZ(theta) TransZ(d)."""
+    ca, sa, ct, st = jnp.cos(alpha), jnp.sin(alpha), jnp.cos(theta), jnp.sin(theta)
+    zero, one = jnp.zeros_like(ct), jnp.ones_like(ct)
+    return jnp.stack([
+        jnp.stack([ct, -st, zero, a * one], -1),
+        jnp.stack([st * ca, ct * ca, -sa * one, -sa * d], -1),
+        jnp.stack([st * sa, ct * sa, ca * one, ca * d], -1),
+        jnp.stack([zero, zero, zero, one], -1),
+    ], -2)
+
+
+def dh_transforms(model: Model, q: Float[Array, " nq"]) -> Float[Array, "frames 4 4"]:
+    """T_parent_frame of every frame at state q, in one batched call."""
+    idx = np.array(model.q_index)
+    qf = jnp.where(idx >= 0, q[np.maximum(idx, 0)], 0.0)  # joint value per frame (0 for fixed)
+    revolute = np.array([k == "revolute" for k in model.joint_kinds])
+    prismatic = np.array([k == "prismatic" for k in model.joint_kinds])
+    dh = model.dh
+    theta = dh[:, 3] + jnp.where(revolute, qf, 0.0)
+    d = dh[:, 2] + jnp.where(prismatic, qf, 0.0)
+    return dh_transform(dh[:, 0], dh[:, 1], d, theta)
+
+
+def quat_to_rotation(quat: Float[Array, 4]) -> Float[Array, "3 3"]:
+    """Rotation matrix of a (w, x, y, z) quaternion, normalised first (zero maps to identity)."""
+    n = jnp.linalg.norm(quat)
+    # Guard: a zero quaternion has no direction; use the identity (both branches finite).
+    w, x, y, z = jnp.where(n > 0, quat / jnp.where(n > 0, n, 1.0), jnp.array([1.0, 0.0, 0.0, 0.0], quat.dtype))
+    return jnp.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def base_pose(model: Model, q: Float[Array, " nq"]) -> Float[Array, "4 4"]:
+    """T_world_root = T_world_mount @ base motion (identity, free palm or planar palm)."""
+    if model.base_kind == "fixed":
+        return model.T_world_mount
+    T = jnp.eye(4, dtype=q.dtype)
+    if model.base_kind == "free":
+        T = T.at[:3, :3].set(quat_to_rotation(q[:4])).at[:3, 3].set(q[4:7])
+    else:  # planar: translation in the mount's x-y plane and yaw about its z
+        c, s = jnp.cos(q[2]), jnp.sin(q[2])
+        T = T.at[:2, :2].set(jnp.array([[c, -s], [s, c]])).at[0, 3].set(q[0]).at[1, 3].set(q[1])
+    return model.T_world_mount @ T
+
+
+def frame_poses(model: Model, q: Float[Array, " nq"]) -> Float[Array, "frames 4 4"]:
+    """T_world_frame for every frame, composed one depth level at a time."""
+    T_parent_frame = dh_transforms(model, q)
+    T_root = base_pose(model, q)
+    T_world = jnp.zeros_like(T_parent_frame)
+    for level in model.levels:  # static: unrolled while tracing
+        idx = np.array(level)
+        parent = np.array([model.parents[i] for i in level])
+        T_parent = jnp.where((parent < 0)[:, None, None], T_root, T_world[np.maximum(parent, 0)])
+        T_world = T_world.at[idx].set(T_parent @ T_parent_frame[idx])
+    return T_world
+
+
+class Pose(eqx.Module):
+    """World-frame geometry of a model at one state (mm).
+
+    ``link_start``/``link_end`` are the two ends of each link axis (the pill's cylinder axis, whose
+    hemispheres are centred on them); ``tips`` are the ends of the tip links (tip centres).
+    """
+
+    frames: Float[Array, "*b frames 4 4"]
+    link_start: Float[Array, "*b links 3"]
+    link_end: Float[Array, "*b links 3"]
+    tips: Float[Array, "*b tips 3"]
+
+
+def _pose(model: Model, q) -> Pose:
+    T = frame_poses(model, q)
+    lf = np.array(model.link_frame, dtype=int)
+    axis = np.array(model.link_axis, dtype=int)
+    start = T[lf, :3, 3]
+    end = start + model.link_length_mm[:, None] * T[lf, :3, axis]
+    tips = end[np.array(model.tip_links, dtype=int)]
+    return Pose(frames=T, link_start=start, link_end=end, tips=tips)
+
+
+@eqx.filter_jit
+def forward(model: Model, q: Float[Array, " nq"]) -> Pose:
+    """Frame poses, link axes and tip centres in world coordinates (jitted)."""
+    return _pose(model, q)
+
+
+def link_points(pose: Pose, fractions: Float[Array, " k"]) -> Float[Array, "links k 3"]:
+    """Points at the given fractions (0 = start, 1 = end) along every link axis."""
+    f = jnp.asarray(fractions)[None, :, None]
+    return pose.link_start[:, None] + f * (pose.link_end - pose.link_start)[:, None]
+
+
+class View(eqx.Module):
+    """A pose seen by one camera: pixels (x, y) and depth (mm) of joints, link ends and tips."""
+
+    joints_px: Float[Array, "frames 2"]
+    joints_depth: Float[Array, " frames"]
+    link_start_px: Float[Array, "links 2"]
+    link_end_px: Float[Array, "links 2"]
+    link_depth: Float[Array, "links 2"]
+    tips_px: Float[Array, "tips 2"]
+    tips_depth: Float[Array, " tips"]
+    link_radius_px: Float[Array, " links"]
+
+
+def _view(model: Model, camera: Camera, pose: Pose) -> View:
+    jp, jd = camera.project(pose.frames[:, :3, 3])
+    sp, sd = camera.project(pose.link_start)
+    ep, ed = camera.project(pose.link_end)
+    tp, td = camera.project(pose.tips)
+    # Radius in pixels at the link's mid depth: the length of the image of a radius-long
+    # segment perpendicular to the viewing ray (exact for orthographic cameras).
+    mid = 0.5 * (pose.link_start + pose.link_end)
+    J = camera.pixel_jacobian(mid)
+    radius_px = model.link_radius_mm * jnp.abs(jnp.linalg.det(J @ jnp.swapaxes(J, -1, -2))) ** 0.25
+    return View(joints_px=jp, joints_depth=jd, link_start_px=sp, link_end_px=ep, link_depth=jnp.stack([sd, ed], -1),
+                tips_px=tp, tips_depth=td, link_radius_px=radius_px)
+
+
+@eqx.filter_jit
+def project_pose(model: Model, camera: Camera, q: Float[Array, " nq"]) -> View:
+    """The model at state q seen by one camera (jitted)."""
+    return _view(model, camera, _pose(model, q))
+
+
+def views(model: Model, cameras, q) -> tuple[View, ...]:
+    """One :class:`View` per camera of a rig."""
+    from .camera import as_rig
+
+    return tuple(project_pose(model, c, q) for c in as_rig(cameras))
+
+
+# ---- boundary helpers (NumPy) ----
+
+def validate_q(model: Model, q, *, name: str = "q", within_limits: bool = False) -> np.ndarray:
+    """Check a user state vector: shape (n_q,), finite, and optionally inside the joint limits.
+
+    Raises:
+        InputError: naming the offending entry by its joint name.
+    """
+    try:
+        arr = np.asarray(q, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise InputError(f"{name}: cannot convert to a float array ({err})") from err
+    if arr.shape != (model.n_q,):
+        raise InputError(f"{name}: expected shape ({model.n_q},) for model {model.name!r}, got {arr.shape}")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        raise InputError(f"{name}: non-finite value for {model.q_names[int(np.argmax(bad))]!r}")
+    if within_limits:
+        lo, hi = np.asarray(model.q_lower), np.asarray(model.q_upper)
+        out = (arr < lo - 1e-12) | (arr > hi + 1e-12)
+        if out.any():
+            i = int(np.argmax(out))
+            conv = np.degrees if model.is_angle[i] else float
+            unit = " deg" if model.is_angle[i] else ""
+            raise InputError(f"{name}: {model.q_names[i]!r} = {conv(arr[i]):.6g}{unit} lies outside its limits "
+                             f"[{conv(lo[i]):.6g}, {conv(hi[i]):.6g}]{unit}")
+    return arr
+
+
+def normalize_q(model: Model, q):
+    """q with the free base's quaternion renormalised to unit length (identity otherwise)."""
+    if model.base_kind != "free":
+        return q
+    n = jnp.linalg.norm(q[..., :4], axis=-1, keepdims=True)
+    return jnp.concatenate([q[..., :4] / jnp.where(n > 0, n, 1.0), q[..., 4:]], axis=-1)
+
+
+def clip_q(model: Model, q):
+    """q clipped into the joint limits (quaternion renormalised)."""
+    return normalize_q(model, jnp.clip(q, model.q_lower, model.q_upper))
+
+
+def random_q(model: Model, rng: np.random.Generator, n: int | None = None, *, margin: float = 0.0,
+             translation_mm: float = 50.0) -> np.ndarray:
+    """Random states within the joint limits (uniform, shrunk by ``margin`` of each range).
+
+    A free base gets a uniformly random unit quaternion and a translation within
+    ``translation_mm`` of its default; a planar base keeps (x, y) within that distance too.
+    """
+    shape = () if n is None else (n,)
+    lo, hi = np.asarray(model.q_lower), np.asarray(model.q_upper)
+    span = hi - lo
+    q = rng.uniform(lo + margin * span, hi - margin * span, size=shape + (model.n_q,))
+    q0 = np.asarray(model.q_default)
+    if model.base_kind == "free":
+        quat = rng.normal(size=shape + (4,))
+        q[..., :4] = quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+        q[..., 4:7] = q0[4:7] + rng.uniform(-translation_mm, translation_mm, size=shape + (3,))
+    elif model.base_kind == "planar":
+        q[..., :2] = q0[:2] + rng.uniform(-translation_mm, translation_mm, size=shape + (2,))
+    return q

@@ -1,0 +1,28 @@
+"""Kinematic models: modified-DH trees, built-in hands and model files."""
+
+from ._file import FORMAT_VERSION as FORMAT_VERSION
+from ._file import load_model as load_model
+from ._file import model_from_dict as model_from_dict
+from ._file import model_to_dict as model_to_dict
+from ._file import save_model as save_model
+from ._model import Model as Model
+from .builtin import builtin_model as builtin_model
+from .builtin import builtin_names as builtin_names
+from .builtin import builtin_spec as builtin_spec
+
+__all__ = ["Model", "builtin_model", "builtin_names", "builtin_spec", "load_model", "save_model",
+           "model_from_dict", "model_to_dict", "FORMAT_VERSION", "get_model"]
+
+
+def get_model(name_or_path) -> Model:
+    """A built-in model by name, or a model file by path (``.toml``/``.json``)."""
+    from pathlib import Path
+
+    if isinstance(name_or_path, Model):
+        return name_or_path
+    if str(name_or_path) in builtin_names():
+        return builtin_model(str(name_or_path))
+    p = Path(name_or_path)
+    if p.suffix in (".toml", ".json"):
+        return load_model(p)
+    return builtin_model(str(name_or_path))  # raises the "unknown model" error listing built-ins

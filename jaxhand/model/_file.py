@@ -1,0 +1,356 @@
+"""Model files: a TOML or JSON description of a kinematic tree, validated on load.
+
+Format (version 1); lengths in mm, angles in degrees::
+
+    format_version = 1
+    name = "index"
+    description = "..."                      # optional
+
+    [base]
+    kind = "fixed"                           # fixed | free | planar
+    rotation = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]   # R_world_mount (rows), optional
+    translation_mm = [0, 0, 0]               # optional
+    # free:   default_quaternion = [1,0,0,0], default_translation_mm, translation_limits_mm = [lo, hi]
+    # planar: default = [x_mm, y_mm, yaw_deg], xy_limits_mm = [lo, hi], yaw_limits_deg = [lo, hi]
+
+    [[frames]]
+    name = "index_mcp"
+    parent = "base"                          # "base" or an earlier/later frame's name
+    alpha_deg = 0.0                          # alpha_{i-1}
+    a_mm = 0.0                               # a_{i-1}
+    d_mm = 0.0                               # d_i (offset for a prismatic joint)
+    theta_deg = 0.0                          # theta_i (offset for a revolute joint)
+    joint = "revolute"                       # revolute | prismatic | fixed
+    limits = [-45.0, 90.0]                   # deg (revolute) or mm (prismatic)
+    default = 10.0                           # deg or mm, inside limits
+    link = { axis = "x", length_mm = 40.0, radius_mm = 9.0, tip = false }   # optional pill
+
+Every validation error names the source, the frame and the field.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._errors import ModelFileError
+from ._model import AXES, BASE_KINDS, BASE_Q_NAMES, JOINT_KINDS, Model
+
+__all__ = ["model_from_dict", "model_to_dict", "load_model", "save_model", "FORMAT_VERSION"]
+
+FORMAT_VERSION = 1
+_TOP_KEYS = {"format_version", "name", "description", "base", "frames"}
+_FRAME_KEYS = {"name", "parent", "alpha_deg", "a_mm", "d_mm", "theta_deg", "joint", "limits", "default", "link"}
+_LINK_KEYS = {"axis", "length_mm", "radius_mm", "tip"}
+_BASE_KEYS = {
+    "fixed": {"kind", "rotation", "translation_mm"},
+    "free": {"kind", "rotation", "translation_mm", "default_quaternion", "default_translation_mm",
+             "translation_limits_mm"},
+    "planar": {"kind", "rotation", "translation_mm", "default", "xy_limits_mm", "yaw_limits_deg"},
+}
+
+
+def _fail(src: str, where: str, msg: str) -> ModelFileError:
+    return ModelFileError(f"{src}: {where}: {msg}")
+
+
+def _check_keys(src: str, where: str, got: dict, allowed: set[str]) -> None:
+    for key in got:
+        if key not in allowed:
+            hint = difflib.get_close_matches(key, sorted(allowed), n=1)
+            extra = f" (did you mean {hint[0]!r}?)" if hint else f" (valid: {', '.join(sorted(allowed))})"
+            raise _fail(src, where, f"unknown field {key!r}{extra}")
+
+
+def _number(src: str, where: str, d: dict, key: str, default: float | None = None) -> float:
+    if key not in d:
+        if default is None:
+            raise _fail(src, where, f"missing field {key!r}")
+        return default
+    v = d[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise _fail(src, where, f"field {key!r} must be a finite number, got {v!r}")
+    return float(v)
+
+
+def _pair(src: str, where: str, d: dict, key: str, default: tuple[float, float]) -> tuple[float, float]:
+    v = d.get(key, list(default))
+    if (not isinstance(v, (list, tuple)) or len(v) != 2
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)):
+        raise _fail(src, where, f"field {key!r} must be [min, max], got {v!r}")
+    lo, hi = float(v[0]), float(v[1])
+    if math.isnan(lo) or math.isnan(hi) or lo > hi:
+        raise _fail(src, where, f"field {key!r}: limit min {lo} > max {hi}")
+    return lo, hi
+
+
+def _vector(src: str, where: str, d: dict, key: str, default: list[float]) -> np.ndarray:
+    v = np.asarray(d.get(key, default), dtype=float)
+    if v.shape != (len(default),) or not np.all(np.isfinite(v)):
+        raise _fail(src, where, f"field {key!r} must be {len(default)} finite numbers, got {d.get(key)!r}")
+    return v
+
+
+def _rotation(src: str, base: dict) -> np.ndarray:
+    R = np.asarray(base.get("rotation", np.eye(3).tolist()), dtype=float)
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        raise _fail(src, "base", f"field 'rotation' must be a 3x3 matrix, got {base.get('rotation')!r}")
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0:
+        raise _fail(src, "base", "field 'rotation' is not a proper rotation matrix (R R^T = I, det R = +1)")
+    return R
+
+
+def model_from_dict(spec: dict[str, Any], source: str = "<dict>") -> Model:
+    """Build and validate a :class:`Model` from a file-format dictionary (degrees, mm).
+
+    Raises:
+        ModelFileError: naming ``source``, the frame and the field for every malformed entry.
+    """
+    src = source
+    if not isinstance(spec, dict):
+        raise _fail(src, "top level", "expected a table/object")
+    _check_keys(src, "top level", spec, _TOP_KEYS)
+    version = spec.get("format_version")
+    if version != FORMAT_VERSION:
+        raise _fail(src, "top level", f"field 'format_version' must be {FORMAT_VERSION}, got {version!r}")
+    name = spec.get("name")
+    if not isinstance(name, str) or not name:
+        raise _fail(src, "top level", f"field 'name' must be a non-empty string, got {name!r}")
+
+    base = spec.get("base", {"kind": "fixed"})
+    if not isinstance(base, dict):
+        raise _fail(src, "base", "expected a table/object")
+    kind = base.get("kind", "fixed")
+    if kind not in BASE_KINDS:
+        raise _fail(src, "base", f"field 'kind': unknown base kind {kind!r} (valid: {', '.join(BASE_KINDS)})")
+    _check_keys(src, "base", base, _BASE_KEYS[kind])
+    mount = np.eye(4)
+    mount[:3, :3] = _rotation(src, base)
+    mount[:3, 3] = _vector(src, "base", base, "translation_mm", [0.0, 0.0, 0.0])
+
+    lower, upper, default = [], [], []
+    if kind == "free":
+        quat = _vector(src, "base", base, "default_quaternion", [1.0, 0.0, 0.0, 0.0])
+        if np.linalg.norm(quat) < 1e-9:
+            raise _fail(src, "base", "field 'default_quaternion' must not be zero")
+        quat = quat / np.linalg.norm(quat)
+        lo, hi = _pair(src, "base", base, "translation_limits_mm", (-1000.0, 1000.0))
+        trans = _vector(src, "base", base, "default_translation_mm", [0.0, 0.0, 0.0])
+        lower += [-1.0] * 4 + [lo] * 3
+        upper += [1.0] * 4 + [hi] * 3
+        default += list(quat) + list(trans)
+    elif kind == "planar":
+        lo, hi = _pair(src, "base", base, "xy_limits_mm", (-1000.0, 1000.0))
+        ylo, yhi = _pair(src, "base", base, "yaw_limits_deg", (-180.0, 180.0))
+        x, y, yaw = _vector(src, "base", base, "default", [0.0, 0.0, 0.0])
+        lower += [lo, lo, math.radians(ylo)]
+        upper += [hi, hi, math.radians(yhi)]
+        default += [x, y, math.radians(yaw)]
+
+    frames = spec.get("frames")
+    if not isinstance(frames, list) or not frames:
+        raise _fail(src, "top level", "field 'frames' must be a non-empty list of frame tables")
+    names: list[str] = []
+    for i, fr in enumerate(frames):
+        if not isinstance(fr, dict):
+            raise _fail(src, f"frame #{i}", "expected a table/object")
+        fname = fr.get("name")
+        if not isinstance(fname, str) or not fname:
+            raise _fail(src, f"frame #{i}", f"field 'name' must be a non-empty string, got {fname!r}")
+        if fname in names or fname == "base":
+            raise _fail(src, f"frame {fname!r}", "duplicate frame name" if fname != "base" else "'base' is reserved")
+        names.append(fname)
+
+    parents, kinds, q_index, dh = [], [], [], []
+    q_names = list(BASE_Q_NAMES[kind])
+    link_names, link_frame, link_axis, link_len, link_rad, tips = [], [], [], [], [], []
+    for i, fr in enumerate(frames):
+        where = f"frame {names[i]!r}"
+        _check_keys(src, where, fr, _FRAME_KEYS)
+        parent = fr.get("parent", "base")
+        if parent == "base":
+            parents.append(-1)
+        elif parent in names:
+            parents.append(names.index(parent))
+        else:
+            raise _fail(src, where, f"field 'parent': parent {parent!r} is not defined")
+        jk = fr.get("joint", "fixed")
+        if jk not in JOINT_KINDS:
+            raise _fail(src, where, f"field 'joint': unknown joint kind {jk!r} (valid: {', '.join(JOINT_KINDS)})")
+        kinds.append(jk)
+        row = [math.radians(_number(src, where, fr, "alpha_deg")), _number(src, where, fr, "a_mm"),
+               _number(src, where, fr, "d_mm"), math.radians(_number(src, where, fr, "theta_deg"))]
+        dh.append(row)
+        if jk == "fixed":
+            for key in ("limits", "default"):
+                if key in fr:
+                    raise _fail(src, where, f"field {key!r} is only allowed on a moving joint")
+            q_index.append(-1)
+        else:
+            unit = math.radians if jk == "revolute" else float
+            lo, hi = _pair(src, where, fr, "limits", (-180.0, 180.0) if jk == "revolute" else (-1000.0, 1000.0))
+            dflt = _number(src, where, fr, "default", min(max(0.0, lo), hi))
+            if not lo <= dflt <= hi:
+                raise _fail(src, where, f"field 'default': {dflt} lies outside limits [{lo}, {hi}]")
+            q_index.append(len(q_names))
+            q_names.append(names[i])
+            lower.append(unit(lo))
+            upper.append(unit(hi))
+            default.append(unit(dflt))
+        link = fr.get("link")
+        if link is not None:
+            lw = f"{where} link"
+            if not isinstance(link, dict):
+                raise _fail(src, lw, "expected a table/object")
+            _check_keys(src, lw, link, _LINK_KEYS)
+            axis = link.get("axis", "x")
+            if axis not in AXES:
+                raise _fail(src, lw, f"field 'axis': unknown axis {axis!r} (valid: x, y, z)")
+            length = _number(src, lw, link, "length_mm")
+            radius = _number(src, lw, link, "radius_mm")
+            if length < 0:
+                raise _fail(src, lw, f"field 'length_mm' must be >= 0, got {length}")
+            if radius < 0:
+                raise _fail(src, lw, f"field 'radius_mm': negative radius {radius}")
+            tip = link.get("tip", False)
+            if not isinstance(tip, bool):
+                raise _fail(src, lw, f"field 'tip' must be true or false, got {tip!r}")
+            if tip:
+                tips.append(len(link_names))
+            link_names.append(names[i])
+            link_frame.append(i)
+            link_axis.append(AXES.index(axis))
+            link_len.append(length)
+            link_rad.append(radius)
+
+    _check_acyclic(src, names, parents)
+    return Model(
+        name=name, frame_names=tuple(names), parents=tuple(parents), joint_kinds=tuple(kinds),
+        q_index=tuple(q_index), base_kind=kind, q_names=tuple(q_names), link_names=tuple(link_names),
+        link_frame=tuple(link_frame), link_axis=tuple(link_axis), tip_links=tuple(tips),
+        dh=np.array(dh, dtype=float), T_world_mount=mount, q_lower=np.array(lower, dtype=float),
+        q_upper=np.array(upper, dtype=float), q_default=np.array(default, dtype=float),
+        link_length_mm=np.array(link_len, dtype=float).reshape(-1),
+        link_radius_mm=np.array(link_rad, dtype=float).reshape(-1),
+    )
+
+
+def _check_acyclic(src: str, names: list[str], parents: list[int]) -> None:
+    for i in range(len(names)):
+        seen, j = set(), i
+        while j >= 0:
+            if j in seen:
+                raise _fail(src, f"frame {names[i]!r}", "field 'parent': the parent chain is cyclic")
+            seen.add(j)
+            j = parents[j]
+    # Kinematics composes parents before children: require a topological frame order.
+    for i, p in enumerate(parents):
+        if p > i:
+            raise _fail(src, f"frame {names[i]!r}",
+                        f"field 'parent': parent {names[p]!r} must be listed before its child")
+
+
+def _clean(x: float) -> float | int:
+    """Round tiny float noise from deg<->rad conversion so files stay readable."""
+    r = round(float(x), 9)
+    return int(r) if r == int(r) and abs(r) < 1e15 else r
+
+
+def model_to_dict(model: Model) -> dict[str, Any]:
+    """The file-format dictionary of ``model`` (inverse of :func:`model_from_dict`)."""
+    dh = np.asarray(model.dh)
+    lo, hi, q0 = (np.asarray(a) for a in (model.q_lower, model.q_upper, model.q_default))
+    mount = np.asarray(model.T_world_mount)
+    base: dict[str, Any] = {"kind": model.base_kind,
+                            "rotation": [[_clean(v) for v in row] for row in mount[:3, :3]],
+                            "translation_mm": [_clean(v) for v in mount[:3, 3]]}
+    if model.base_kind == "free":
+        base["default_quaternion"] = [_clean(v) for v in q0[:4]]
+        base["default_translation_mm"] = [_clean(v) for v in q0[4:7]]
+        base["translation_limits_mm"] = [_clean(lo[4]), _clean(hi[4])]
+    elif model.base_kind == "planar":
+        base["default"] = [_clean(q0[0]), _clean(q0[1]), _clean(math.degrees(q0[2]))]
+        base["xy_limits_mm"] = [_clean(lo[0]), _clean(hi[0])]
+        base["yaw_limits_deg"] = [_clean(math.degrees(lo[2])), _clean(math.degrees(hi[2]))]
+    frames = []
+    link_of = {f: k for k, f in enumerate(model.link_frame)}
+    for i, name in enumerate(model.frame_names):
+        p = model.parents[i]
+        fr: dict[str, Any] = {
+            "name": name, "parent": "base" if p < 0 else model.frame_names[p],
+            "alpha_deg": _clean(math.degrees(dh[i, 0])), "a_mm": _clean(dh[i, 1]),
+            "d_mm": _clean(dh[i, 2]), "theta_deg": _clean(math.degrees(dh[i, 3])),
+            "joint": model.joint_kinds[i],
+        }
+        j = model.q_index[i]
+        if j >= 0:
+            conv = math.degrees if model.joint_kinds[i] == "revolute" else float
+            fr["limits"] = [_clean(conv(lo[j])), _clean(conv(hi[j]))]
+            fr["default"] = _clean(conv(q0[j]))
+        if i in link_of:
+            k = link_of[i]
+            fr["link"] = {"axis": AXES[model.link_axis[k]], "length_mm": _clean(model.link_length_mm[k]),
+                          "radius_mm": _clean(model.link_radius_mm[k]), "tip": k in model.tip_links}
+        frames.append(fr)
+    return {"format_version": FORMAT_VERSION, "name": model.name, "base": base, "frames": frames}
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def _to_toml(d: dict[str, Any]) -> str:
+    lines = [f"{k} = {_toml_value(v)}" for k, v in d.items() if k not in ("base", "frames")]
+    lines += ["", "[base]"] + [f"{k} = {_toml_value(v)}" for k, v in d["base"].items()]
+    for fr in d["frames"]:
+        lines += ["", "[[frames]]"] + [f"{k} = {_toml_value(v)}" for k, v in fr.items()]
+    return "\n".join(lines) + "\n"
+
+
+def load_model(path: str | Path) -> Model:
+    """Load a model from a ``.toml`` or ``.json`` file.
+
+    Raises:
+        ModelFileError: unreadable, unparsable or invalid file; the message names the file.
+    """
+    path = Path(path)
+    if path.suffix not in (".json", ".toml"):
+        raise ModelFileError(f"{path}: unknown model file type {path.suffix!r} (use .toml or .json)")
+    try:
+        text = path.read_text()
+    except OSError as err:
+        raise ModelFileError(f"{path}: cannot read model file ({err.strerror})") from err
+    try:
+        spec = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
+    except (json.JSONDecodeError, tomllib.TOMLDecodeError) as err:
+        raise ModelFileError(f"{path}: cannot parse: {err}") from err
+    return model_from_dict(spec, source=str(path))
+
+
+def save_model(model: Model, path: str | Path) -> Path:
+    """Write ``model`` as ``.toml`` or ``.json`` (by suffix); load_model reads it back."""
+    path = Path(path)
+    d = model_to_dict(model)
+    if path.suffix == ".json":
+        path.write_text(json.dumps(d, indent=2) + "\n")
+    elif path.suffix == ".toml":
+        path.write_text(_to_toml(d))
+    else:
+        raise ModelFileError(f"{path}: unknown model file type {path.suffix!r} (use .toml or .json)")
+    return path

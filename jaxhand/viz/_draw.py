@@ -1,0 +1,56 @@
+"""Overlays drawn with OpenCV: link axes, pill outlines, joints and tips of a projected model."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from ..camera import Camera
+from ..kinematics import View, project_pose
+from ..model import Model
+
+__all__ = ["draw_view", "sketch_model"]
+
+_SHIFT = 4  # sub-pixel drawing: OpenCV takes fixed-point coordinates with 4 fractional bits
+
+
+def _pt(p) -> tuple[int, int]:
+    return (int(round(p[0] * (1 << _SHIFT))), int(round(p[1] * (1 << _SHIFT))))
+
+
+def draw_view(image: np.ndarray, view: View, color=(0, 0, 255), *, outline: bool = False, thickness: int = 1,
+              joints: bool = True) -> np.ndarray:
+    """Draw a projected model onto a BGR uint8 image (in place; also returned).
+
+    Args:
+        image: (H, W, 3) uint8 BGR image.
+        view: the model seen by this image's camera (:func:`jaxhand.project_pose`).
+        color: BGR colour of the link axes.
+        outline: also draw each pill's projected outline (two side lines and end circles).
+        thickness: line thickness in pixels.
+        joints: mark joint centres (circles) and tips (filled dots).
+    """
+    s, e = np.asarray(view.link_start_px), np.asarray(view.link_end_px)
+    r = np.asarray(view.link_radius_px)
+    for k in range(len(s)):  # drawing API is per primitive; a few dozen links per frame
+        cv2.line(image, _pt(s[k]), _pt(e[k]), color, thickness, cv2.LINE_AA, _SHIFT)
+        if outline:
+            d = e[k] - s[k]
+            n = np.array([-d[1], d[0]]) / max(np.linalg.norm(d), 1e-9) * r[k]
+            for sign in (1, -1):
+                cv2.line(image, _pt(s[k] + sign * n), _pt(e[k] + sign * n), color, 1, cv2.LINE_AA, _SHIFT)
+            for c in (s[k], e[k]):
+                cv2.circle(image, _pt(c), int(round(r[k] * (1 << _SHIFT))), color, 1, cv2.LINE_AA, _SHIFT)
+        if joints:
+            cv2.circle(image, _pt(s[k]), 2 << _SHIFT, color, 1, cv2.LINE_AA, _SHIFT)
+    if joints:
+        for t in np.asarray(view.tips_px):
+            cv2.circle(image, _pt(t), 3 << _SHIFT, color, -1, cv2.LINE_AA, _SHIFT)
+    return image
+
+
+def sketch_model(model: Model, camera: Camera, q, *, background: int = 0) -> np.ndarray:
+    """A quick BGR picture of the model at state q: pill outlines and axes on a plain background."""
+    w, h = camera.size
+    image = np.full((h, w, 3), background, np.uint8)
+    return draw_view(image, project_pose(model, camera, q), (80, 200, 255), outline=True)
