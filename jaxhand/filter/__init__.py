@@ -1,0 +1,14 @@
+"""Temporal filters (thesis ch. 5, app. E) as pure predict/update functions."""
+
+from ._ghk import GHKState as GHKState
+from ._ghk import ghk_gains as ghk_gains
+from ._ghk import ghk_init as ghk_init
+from ._ghk import ghk_predict as ghk_predict
+from ._ghk import ghk_update as ghk_update
+from ._kalman import KalmanState as KalmanState
+from ._kalman import kalman_predict as kalman_predict
+from ._kalman import kalman_update as kalman_update
+from ._width import width_update as width_update
+
+__all__ = ["GHKState", "ghk_gains", "ghk_init", "ghk_predict", "ghk_update", "KalmanState", "kalman_predict",
+           "kalman_update", "width_update"]
