@@ -1,0 +1,9 @@
+"""Reading frames (videos, image folders) and writing results as they are computed."""
+
+from ._frames import Frame as Frame
+from ._frames import FrameSource as FrameSource
+from ._frames import open_frames as open_frames
+from ._results import ResultWriter as ResultWriter
+from ._results import read_angles_csv as read_angles_csv
+
+__all__ = ["Frame", "FrameSource", "open_frames", "ResultWriter", "read_angles_csv"]

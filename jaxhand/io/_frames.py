@@ -1,0 +1,115 @@
+"""Frame sources: a video file or a folder of images, read one frame at a time.
+
+A frame that cannot be decoded (a corrupt or vanished image file) is yielded with
+``image=None`` and an ``error`` message, so the caller can report and skip it without losing
+its place in the sequence.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterator
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from .._errors import InputError
+
+__all__ = ["Frame", "FrameSource", "open_frames", "IMAGE_SUFFIXES"]
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
+
+
+@dataclasses.dataclass(frozen=True)
+class Frame:
+    """One frame: its index, time (s), the grey uint8 image (None if unreadable) and why not."""
+
+    index: int
+    time_s: float
+    image: np.ndarray | None
+    error: str | None = None
+
+
+def _grey(image: np.ndarray) -> np.ndarray:
+    if image.ndim == 3:
+        code = cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY
+        image = cv2.cvtColor(image, code)
+    if image.dtype != np.uint8:
+        image = cv2.normalize(image, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
+    return image
+
+
+class FrameSource:
+    """Frames of a video file or an image folder (sorted by file name), as grey uint8 images.
+
+    Args:
+        path: a video file (anything OpenCV's FFmpeg backend reads) or a folder of images.
+        fps: frames per second for image folders, and for videos whose file lacks a frame rate.
+
+    Raises:
+        InputError: the path does not exist, the folder holds no images, or the video has no
+            frames or cannot be opened.
+    """
+
+    def __init__(self, path: str | Path, fps: float = 25.0):
+        self.path = Path(path)
+        if fps <= 0:
+            raise InputError(f"fps must be > 0, got {fps}")
+        self.fps = float(fps)
+        if not self.path.exists():
+            raise InputError(f"{self.path}: no such video file or image folder")
+        if self.path.is_dir():
+            self.files = sorted(p for p in self.path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+            if not self.files:
+                raise InputError(f"{self.path}: the folder holds no images ({', '.join(IMAGE_SUFFIXES)})")
+            self._count = len(self.files)
+        else:
+            self.files = None
+            cap = cv2.VideoCapture(str(self.path))
+            if not cap.isOpened():
+                raise InputError(f"{self.path}: cannot open as a video")
+            count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+            rate = cap.get(cv2.CAP_PROP_FPS)
+            ok, _ = cap.read()
+            cap.release()
+            if not ok:
+                raise InputError(f"{self.path}: the video has no frames")
+            self._count = max(count, 1)
+            if rate and rate > 0:
+                self.fps = float(rate)
+
+    def __len__(self) -> int:
+        return self._count
+
+    def __iter__(self) -> Iterator[Frame]:
+        if self.files is not None:
+            for i, f in enumerate(self.files):
+                image = cv2.imread(str(f), cv2.IMREAD_UNCHANGED)
+                if image is None or image.size == 0:
+                    yield Frame(i, i / self.fps, None, f"{f.name}: cannot read image (missing or corrupt)")
+                else:
+                    yield Frame(i, i / self.fps, _grey(image))
+            return
+        cap = cv2.VideoCapture(str(self.path))
+        try:
+            i = 0
+            while True:
+                ok, image = cap.read()
+                if not ok:
+                    break
+                yield Frame(i, i / self.fps, _grey(image))
+                i += 1
+        finally:
+            cap.release()
+
+
+def open_frames(paths, fps: float = 25.0) -> list[FrameSource]:
+    """One :class:`FrameSource` per camera; all must have the same number of frames."""
+    sources = [FrameSource(p, fps) for p in ([paths] if isinstance(paths, (str, Path)) else paths)]
+    if not sources:
+        raise InputError("no input given: pass a video file or an image folder per camera")
+    counts = {len(s) for s in sources}
+    if len(counts) > 1:
+        raise InputError(f"the inputs have different frame counts: {[len(s) for s in sources]}")
+    return sources

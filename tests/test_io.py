@@ -1,0 +1,75 @@
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+import jaxhand as jh
+from jaxhand.io import FrameSource, ResultWriter, open_frames, read_angles_csv
+
+
+def _folder(tmp_path, n=4, corrupt=None):
+    d = tmp_path / "frames"
+    d.mkdir()
+    for i in range(n):
+        cv2.imwrite(str(d / f"frame_{i:04d}.png"), np.full((12, 16, 3), 10 * i, np.uint8))
+    if corrupt is not None:
+        (d / f"frame_{corrupt:04d}.png").write_bytes(b"not a png")
+    return d
+
+
+def test_image_folder_reports_and_keeps_place_of_corrupt_frames(tmp_path):
+    src = FrameSource(_folder(tmp_path, 4, corrupt=2), fps=10)
+    frames = list(src)
+    assert len(src) == 4 and [f.index for f in frames] == [0, 1, 2, 3]
+    assert frames[2].image is None and "frame_0002.png: cannot read image" in frames[2].error
+    assert frames[3].image.shape == (12, 16) and frames[3].image.dtype == np.uint8 and frames[3].image[0, 0] == 30
+    assert frames[1].time_s == pytest.approx(0.1)
+
+
+def test_video_round_trip(tmp_path):
+    path = tmp_path / "v.avi"
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 20.0, (32, 24))
+    for i in range(5):
+        w.write(np.full((24, 32, 3), 40 * i, np.uint8))
+    w.release()
+    src = FrameSource(path)
+    frames = list(src)
+    assert len(frames) == 5 and src.fps == pytest.approx(20.0)
+    assert abs(int(frames[4].image.mean()) - 160) <= 3
+
+
+def test_bad_inputs(tmp_path):
+    with pytest.raises(jh.InputError, match="no such video file or image folder"):
+        FrameSource(tmp_path / "nope")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(jh.InputError, match="holds no images"):
+        FrameSource(tmp_path / "empty")
+    (tmp_path / "bad.mp4").write_bytes(b"")
+    with pytest.raises(jh.InputError, match="bad.mp4"):
+        FrameSource(tmp_path / "bad.mp4")
+    a = _folder(tmp_path, 3)
+    (tmp_path / "b").mkdir()
+    cv2.imwrite(str(tmp_path / "b" / "x.png"), np.zeros((4, 4), np.uint8))
+    with pytest.raises(jh.InputError, match=r"different frame counts: \[3, 1\]"):
+        open_frames([a, tmp_path / "b"])
+
+
+def test_result_writer_flushes_each_frame(tmp_path):
+    m = jh.builtin_model("index")
+    w = ResultWriter(tmp_path, m, checkpoint_every=2)
+    q = np.radians([10.0, -20.0, -30.0])
+    w.write(0, 0.0, q, 0.9, False, cost=np.array(1.5))
+    # Before close: the CSV already holds the frame (an interrupted run keeps it).
+    cols = read_angles_csv(tmp_path / "angles.csv")
+    np.testing.assert_allclose([cols["index_mcp_deg"][0], cols["index_dip_deg"][0]], [10.0, -30.0])
+    w.write(1, 0.04, q, 0.8, True, cost=np.array(2.5))
+    assert (tmp_path / "results.npz").exists()  # checkpoint after 2 frames
+    w.skip(2, "corrupt")
+    s = w.close({"fps": 25.0})
+    assert s["frames_written"] == 2
+    assert json.loads((tmp_path / "summary.json").read_text())["frames_skipped"] == [{"frame": 2, "reason": "corrupt"}]
+    npz = np.load(tmp_path / "results.npz")
+    np.testing.assert_allclose(npz["cost"], [1.5, 2.5])
+    with ResultWriter(tmp_path / "x", m) as bad, pytest.raises(jh.InputError, match="non-finite"):
+        bad.write(0, 0.0, np.array([np.nan, 0, 0]), 1.0, False)
