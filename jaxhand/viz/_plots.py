@@ -1,0 +1,58 @@
+"""Plots of joint angles over time (thesis figs. 6.2, 6.4, 6.6), with matplotlib's Agg backend."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from ..model import Model  # noqa: E402
+
+__all__ = ["plot_joint_angles", "joint_groups"]
+
+
+def joint_groups(model: Model) -> dict[str, list[int]]:
+    """q entries grouped by digit (the name before the first underscore), base entries first."""
+    groups: dict[str, list[int]] = {}
+    for i, name in enumerate(model.q_names):
+        groups.setdefault(name.split("_")[0], []).append(i)
+    return groups
+
+
+def plot_joint_angles(model: Model, times_s, q_est, path: str | Path, *, q_truth=None, q_raw=None,
+                      title: str | None = None) -> Path:
+    """One panel per digit: estimates (solid) against ground truth (dotted) over time.
+
+    Args:
+        q_est: (frames, n_q) filtered estimates (radians/mm as in q).
+        q_truth: optional (frames, n_q) ground truth, drawn dotted in the same colour.
+        q_raw: optional (frames, n_q) unfiltered solver output, drawn thin and faded.
+    """
+    t = np.asarray(times_s)
+    groups = joint_groups(model)
+    conv = np.where(model.is_angle, 180.0 / np.pi, 1.0)
+    fig, axes = plt.subplots(len(groups), 1, figsize=(8, 2.1 * len(groups)), sharex=True, squeeze=False)
+    for ax, (digit, idx) in zip(axes[:, 0], groups.items()):
+        for n, i in enumerate(idx):
+            color = f"C{n}"
+            if q_raw is not None:
+                ax.plot(t, np.asarray(q_raw)[:, i] * conv[i], color=color, lw=0.6, alpha=0.35)
+            ax.plot(t, np.asarray(q_est)[:, i] * conv[i], color=color, lw=1.4, label=model.q_names[i])
+            if q_truth is not None:
+                ax.plot(t, np.asarray(q_truth)[:, i] * conv[i], color=color, lw=1.2, ls=":")
+        unit = "deg" if model.is_angle[idx].all() else "deg / mm"
+        ax.set_ylabel(f"{digit} [{unit}]")
+        ax.legend(fontsize=7, loc="upper left", ncol=min(len(idx), 5), frameon=False)
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.suptitle(title or f"{model.name}: estimates (solid)" + (" vs ground truth (dotted)" if q_truth is not None
+                                                                  else ""))
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
