@@ -73,3 +73,24 @@ def test_result_writer_flushes_each_frame(tmp_path):
     np.testing.assert_allclose(npz["cost"], [1.5, 2.5])
     with ResultWriter(tmp_path / "x", m) as bad, pytest.raises(jh.InputError, match="non-finite"):
         bad.write(0, 0.0, np.array([np.nan, 0, 0]), 1.0, False)
+
+
+def test_parse_pose_forms(tmp_path):
+    from jaxhand.io import parse_pose, pose_to_dict
+
+    m = jh.builtin_model("index")
+    np.testing.assert_allclose(parse_pose(m, None), m.q_default)
+    q = parse_pose(m, "index_pip=-45")
+    np.testing.assert_allclose(np.degrees(q), [-10.0, -45.0, -10.0])
+    np.testing.assert_allclose(np.degrees(parse_pose(m, "-5,-6,-7")), [-5, -6, -7])
+    (tmp_path / "p.json").write_text(json.dumps({"q": {"index_mcp": 20}}))
+    np.testing.assert_allclose(np.degrees(parse_pose(m, str(tmp_path / "p.json"))), [20, -15, -10])
+    assert pose_to_dict(m, q)["index_pip"] == pytest.approx(-45.0)
+    with pytest.raises(jh.InputError, match="unknown joint 'index_tip'; valid: index_mcp"):
+        parse_pose(m, "index_tip=3")
+    with pytest.raises(jh.InputError, match=r"expected shape \(3,\)"):
+        parse_pose(m, "1,2")
+    with pytest.raises(jh.InputError, match=r"'index_dip' = 30 deg lies outside its limits"):
+        parse_pose(m, "index_dip=30")
+    with pytest.raises(jh.InputError, match="neither 'default'"):
+        parse_pose(m, "bent")

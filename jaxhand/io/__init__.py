@@ -3,7 +3,9 @@
 from ._frames import Frame as Frame
 from ._frames import FrameSource as FrameSource
 from ._frames import open_frames as open_frames
+from ._pose import parse_pose as parse_pose
+from ._pose import pose_to_dict as pose_to_dict
 from ._results import ResultWriter as ResultWriter
 from ._results import read_angles_csv as read_angles_csv
 
-__all__ = ["Frame", "FrameSource", "open_frames", "ResultWriter", "read_angles_csv"]
+__all__ = ["Frame", "FrameSource", "open_frames", "ResultWriter", "read_angles_csv", "parse_pose", "pose_to_dict"]
