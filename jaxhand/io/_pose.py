@@ -15,7 +15,13 @@ __all__ = ["parse_pose", "pose_to_dict"]
 
 
 def _from_user(model: Model, values) -> np.ndarray:
-    v = np.asarray(values, float)
+    try:
+        v = np.asarray(values, float)
+    except (TypeError, ValueError) as err:
+        raise InputError(f"pose: cannot read {values!r} as numbers") from err
+    if v.shape != (model.n_q,):
+        raise InputError(f"pose: expected shape ({model.n_q},) for {model.name!r} ({', '.join(model.q_names)}), "
+                         f"got {v.shape}")
     return np.where(model.is_angle, np.radians(v), v)
 
 
