@@ -20,6 +20,7 @@ __all__ = ["main"]
 _COMMANDS = [
     "jaxhand.cli_models",
     "jaxhand.cli_demo",
+    "jaxhand.cli_synth",
 ]
 
 

@@ -11,6 +11,9 @@ from ._config import RenderConfig as RenderConfig
 from ._config import make_background as make_background
 from ._frame import RenderResult as RenderResult
 from ._frame import render_frame as render_frame
+from ._io import SequenceFolder as SequenceFolder
+from ._io import load_sequence as load_sequence
+from ._io import write_sequence as write_sequence
 from ._presets import PRESET_DESCRIPTIONS as PRESET_DESCRIPTIONS
 from ._presets import Sequence as Sequence
 from ._presets import make_preset as make_preset
@@ -22,4 +25,4 @@ from ._trajectory import minimum_jerk as minimum_jerk
 
 __all__ = ["RenderConfig", "RenderResult", "render_frame", "make_background", "Sequence", "make_preset",
            "preset_names", "PRESET_DESCRIPTIONS", "parse_size", "joint_trajectory", "minimum_jerk",
-           "min_jerk_profile"]
+           "min_jerk_profile", "write_sequence", "load_sequence", "SequenceFolder"]
