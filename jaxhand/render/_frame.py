@@ -124,7 +124,11 @@ def render_frame(model: Model, camera, q, config: RenderConfig | None = None, *,
     if config.mode == "binary":
         fg = mask * float(config.foreground)
     else:
-        albedo = np.broadcast_to(np.asarray(config.albedo, float), (model.n_links,))
+        albedo = np.asarray(config.albedo, float)
+        if albedo.ndim == 1 and albedo.shape != (model.n_links,):
+            raise InputError(f"albedo: expected one value or {model.n_links} (one per link of {model.name!r}), "
+                             f"got {len(albedo)}")
+        albedo = np.broadcast_to(albedo, (model.n_links,))
         fmask, normal, view = pill_normals(grid, pills, zbuf)
         fg = np.zeros(fmask.shape)
         fg[fmask] = 255.0 * _shade(config, normal, view, albedo[zbuf.link_id[fmask]])
