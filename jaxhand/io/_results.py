@@ -89,8 +89,10 @@ class ResultWriter:
         return self
 
     def __exit__(self, *exc):
-        if not self._csv_file.closed:
+        if not self._csv_file.closed:  # interrupted: keep the NPZ in step with the CSV
             self._csv_file.close()
+            if self.rows:
+                self._write_npz()
 
 
 def _jsonable(x):
