@@ -19,7 +19,7 @@ __all__ = ["main"]
 # Modules providing `register(subparsers)`; each adds one subcommand with `func` set.
 _COMMANDS = [
     "jaxhand.cli_models",
-    "jaxhand.cli_demo",
+    "jaxhand.cli_track",
     "jaxhand.cli_synth",
 ]
 
