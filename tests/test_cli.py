@@ -1,0 +1,49 @@
+import json
+
+import numpy as np
+
+import jaxhand as jh
+from jaxhand.cli import main
+
+
+def test_models_lists_every_builtin_with_dof_and_joints(capsys):
+    assert main(["models"]) == 0
+    out = capsys.readouterr().out
+    for name in jh.builtin_names():
+        assert name in out
+    assert "hand21        21 DOF (21 q entries" in out
+    assert "hand27        27 DOF (28 q entries, free base" in out
+    assert "joints: palm_x, palm_y, palm_yaw, index_mcp" in out
+
+
+def test_models_export_round_trips(tmp_path, capsys):
+    path = tmp_path / "hand.toml"
+    assert main(["models", "hand21", "--export", str(path)]) == 0
+    assert "index_pip" in capsys.readouterr().out
+    assert jh.load_model(path).structure() == jh.builtin_model("hand21").structure()
+
+
+def test_errors_are_one_line_and_exit_2(tmp_path, capsys):
+    assert main(["models", "hand99"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("jaxhand models: error: unknown model 'hand99'") and err.count("\n") == 1
+    assert main(["track", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
+    assert "--model is required unless INPUT is a 'jaxhand synth' folder" in capsys.readouterr().err
+
+
+def test_sketch_writes_pngs(tmp_path, capsys):
+    assert main(["sketch", "--model", "index_thumb", "--out", str(tmp_path), "--poses", "1"]) == 0
+    paths = capsys.readouterr().out.split()
+    assert len(paths) == 2 and all(p.endswith(".png") for p in paths)
+
+
+def test_track_a_synth_folder_end_to_end(tmp_path, capsys):
+    assert main(["synth", "two_finger_occlusion", str(tmp_path / "seq"), "--frames", "6", "--size", "160x120"]) == 0
+    assert main(["track", str(tmp_path / "seq"), "--out", str(tmp_path / "out"), "--method", "gaussian"]) == 0
+    out = capsys.readouterr().out
+    assert "tracked 6 frames of two_fingers" in out
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["frames"] == 6 and "accuracy_filtered" in summary
+    rows = (tmp_path / "out" / "angles.csv").read_text().splitlines()
+    assert rows[0].startswith("frame,time_s,middle_mcp_deg") and len(rows) == 7
+    assert np.isfinite(np.array([r.split(",")[2:-2] for r in rows[1:]], float)).all()
