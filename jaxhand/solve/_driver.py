@@ -1,0 +1,132 @@
+"""The iteration driver shared by every solver: one ``lax.while_loop`` around an optimistix
+solver's ``step``, with the thesis's stopping rules, a history buffer and status mapping.
+
+Why not ``optimistix.least_squares``: it stops on its own Cauchy test, keeps no history and
+maps failures to its own results; the thesis's examples need the step-norm and cost rules,
+their iteration tables need ``(q_k, H_k)`` at every k, and a tracker needs the starting state
+back (never NaN) when a solve fails. The algorithms themselves (descents, searches,
+accept/reject) remain optimistix's: this loop only calls ``solver.step``.
+
+Iteration count: iteration k evaluates r and J at one new trial point (the first evaluation,
+at q_0, is iteration 0). For Gauss-Newton every trial is an update, so ``iterations`` is the
+thesis's k; a trust-region method may reject a trial, which then leaves q unchanged.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import optimistix as optx
+from jaxtyping import Array, Float
+
+from ._config import FitConfig
+from ._parts import GaussNewtonFamily, StateSpace, is_finite
+from ._result import FitResult
+from ._status import Status
+from ._stopping import cost_blew_up, small_step, stagnant_cost
+
+__all__ = ["solve_least_squares"]
+
+# Reasons the loop stopped (internal codes, mapped to Status after the loop).
+_RUNNING, _CONVERGED, _DIVERGED, _NONFINITE = 0, 1, 2, 3
+
+
+class _WithAux(eqx.Module):
+    """``fn(y, args) -> (r, None)``: optimistix solvers expect an aux output."""
+
+    fn: Callable = eqx.field(static=True)
+
+    def __call__(self, y, args):
+        return self.fn(y, args), None
+
+
+def _half_sumsq(r):
+    return 0.5 * jnp.sum(r * r)
+
+
+def solve_least_squares(fn: Callable, solver: GaussNewtonFamily, q0: Float[Array, " nq"], args,
+                        space: StateSpace, config: FitConfig) -> FitResult:
+    """Minimise ``H(q) = 1/2 ||fn(q, args)||^2`` from ``q0`` with ``solver`` (traceable, not jitted).
+
+    Stops at the first of: the step rule, the cost rule (:mod:`._stopping`), a non-finite
+    iterate, the divergence guard, or ``config.max_steps`` iterations. Then:
+
+    - non-finite, or diverged (cost above ``divergence_factor * H_0`` during the solve, or
+      above ``H_0`` at its end): returns ``q0`` and ``H_0`` with that status;
+    - converged: ``ok``, or ``singular`` when J at the result has rank < ``space.dof``;
+    - otherwise ``max_steps`` with the last iterate.
+    """
+    f = _WithAux(fn)
+    options: dict = {}
+    tags: frozenset = frozenset()
+    f_struct = jax.eval_shape(fn, q0, args)
+    state = solver.init(f, q0, args, options, f_struct, None, tags)
+    # Iteration 0: evaluate r, J at q0 and propose the first step.
+    y, state, _ = solver.step(f, q0, args, options, state, tags)
+    H0 = _half_sumsq(state.f_info.residual)
+    dynamic0, static = eqx.partition(state, eqx.is_array)
+
+    n_hist = config.max_steps + 1 if config.history else 0
+    hist_q = jnp.broadcast_to(q0, (n_hist,) + q0.shape)
+    hist_H = jnp.broadcast_to(H0, (n_hist,))
+    start_ok = is_finite(H0, state.y_eval)
+    code0 = jnp.where(start_ok, _RUNNING, _NONFINITE)
+
+    def cond(carry):
+        _, _, k, code, _, _, _ = carry
+        return (code == _RUNNING) & (k < config.max_steps)
+
+    def body(carry):
+        y, dynamic, k, _, H, hist_q, hist_H = carry
+        state = eqx.combine(dynamic, static)
+        y_new, new_state, _ = solver.step(f, y, args, options, state, tags)
+        H_new = _half_sumsq(new_state.f_info.residual)
+        accepted = new_state.num_accepted_steps > state.num_accepted_steps
+        proposal = new_state.y_eval - y_new
+        finite = is_finite(H_new, y_new, proposal) & (new_state.result == optx.RESULTS.successful)
+        converged = (small_step(accepted, y_new - y, proposal, config.xtol)
+                     | stagnant_cost(accepted, H, H_new, config.ftol))
+        code = jnp.where(~finite, _NONFINITE,
+                         jnp.where(cost_blew_up(H_new, H0, config.divergence_factor), _DIVERGED,
+                                   jnp.where(converged, _CONVERGED, _RUNNING)))
+        if n_hist:
+            hist_q = hist_q.at[k + 1].set(y_new)
+            hist_H = hist_H.at[k + 1].set(H_new)
+        new_dynamic, _ = eqx.partition(new_state, eqx.is_array)
+        return y_new, new_dynamic, k + 1, code, H_new, hist_q, hist_H
+
+    carry = (y, dynamic0, jnp.array(0), code0, H0, hist_q, hist_H)
+    y, dynamic, k, code, H, hist_q, hist_H = jax.lax.while_loop(cond, body, carry)
+    state = eqx.combine(dynamic, static)
+
+    # Rank of J at the result (full rank = every DOF determined by the features).
+    J = state.f_info.jac.as_matrix()
+    s = jnp.linalg.svd(J, compute_uv=False)
+    rank = jnp.sum(s > config.rank_rtol * s[0])
+
+    finite = is_finite(y, H) & (code != _NONFINITE)
+    diverged = finite & ((code == _DIVERGED) | (H > H0))
+    failed = ~finite | diverged
+    converged = (code == _CONVERGED) & ~failed
+    status = Status.where(
+        ~finite, Status.nonfinite,
+        Status.where(diverged, Status.diverged,
+                     Status.where(converged, Status.where(rank < space.dof, Status.singular, Status.ok),
+                                  Status.max_steps)))
+    q_out = jnp.where(failed, q0, y)
+    H_out = jnp.where(failed, H0, H)
+    if n_hist:
+        # Entries past the last iteration repeat the returned state, and non-finite entries (of a
+        # failed solve) become the start: the path stays visible, no NaN leaves the solve.
+        later = jnp.arange(n_hist) > k
+        hist_q = jnp.where(later[:, None], q_out, hist_q)
+        hist_H = jnp.where(later, H_out, hist_H)
+        hist_q = jnp.where(jnp.isfinite(hist_q), hist_q, q0)
+        hist_H = jnp.where(jnp.isfinite(hist_H), hist_H, H0)
+    H0_out = jnp.where(jnp.isfinite(H0), H0, jnp.finfo(H0.dtype).max)
+    return FitResult(q=q_out, cost=jnp.where(jnp.isfinite(H_out), H_out, H0_out), start_cost=H0_out,
+                    iterations=k, converged=converged, status=status, rank=rank, history_q=hist_q,
+                    history_cost=hist_H)

@@ -1,0 +1,171 @@
+"""fit and fit_batch: validate at the boundary, then one jitted solve (or a vmapped batch of them)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._errors import InputError
+from ..camera import as_rig
+from ..features import Features, validate_features
+from ..kinematics import validate_q
+from ..model import Model
+from ..residuals import ResidualArgs, residuals
+from ._config import FitConfig, check_config
+from ._driver import solve_least_squares
+from ._parts import GaussNewtonFamily, StateSpace
+from ._result import FitResult
+from .bounded_trust_region import make_bounded_trust_region
+from .constant_damping import make_constant_damping
+from .gauss_newton import make_gauss_newton
+from .levenberg_marquardt import make_levenberg_marquardt
+from .step_limited import make_step_limited
+
+__all__ = ["SOLVERS", "fit", "fit_batch", "solver_named"]
+
+#: Solver names accepted by :func:`fit`, with their builders.
+_BUILDERS: dict[str, Callable[[FitConfig, StateSpace], GaussNewtonFamily]] = {
+    "gn": make_gauss_newton,            # thesis eq. 3.4
+    "gn_eta": make_step_limited,        # thesis §3.2.4, fixed or adaptive eta
+    "lm_fixed": make_constant_damping,  # DigitEyes eq. 5, constant mu I
+    "lm": make_levenberg_marquardt,     # optimistix LevenbergMarquardt, adaptive damping
+    "bounded": make_bounded_trust_region,  # Coleman-Li scaled trust region inside the limits
+}
+SOLVERS: tuple[str, ...] = tuple(_BUILDERS)
+
+
+def solver_named(name: str) -> str:
+    """Check a solver name; the error lists the valid ones."""
+    if not isinstance(name, str) or name not in _BUILDERS:
+        raise InputError(f"unknown solver {name!r}; valid solvers: {', '.join(SOLVERS)}")
+    return name
+
+
+def _fit_core(model: Model, rig: tuple, feats: tuple, q0, solver: str, config: FitConfig) -> FitResult:
+    space = StateSpace.of(model)
+    q0 = space.normalize(q0)
+    if solver == "bounded":
+        q0 = space.interior(q0)
+    args = ResidualArgs(model=model, cameras=rig, features=feats, fractions=config.link_fractions)
+    return solve_least_squares(residuals, _BUILDERS[solver](config, space), q0, args, space, config)
+
+
+_fit_jit = eqx.filter_jit(_fit_core)
+
+
+@eqx.filter_jit
+def _fit_batch_jit(model, rig, feats, q0s, solver, config):
+    return jax.vmap(lambda f, q: _fit_core(model, rig, f, q, solver, config))(feats, q0s)
+
+
+def fit(model: Model, cameras, features, q0, *, solver: str = "lm", config: FitConfig | None = None) -> FitResult:
+    """Fit the model's state to one frame's features (jitted; compiles once per model
+    structure, rig, feature layout, solver and static config).
+
+    Args:
+        model: the articulated model.
+        cameras: one camera or a rig (tuple of cameras).
+        features: one :class:`~jaxhand.features.Features` per camera (a single one for one camera).
+        q0: (n_q,) the starting state (e.g. the tracker's prediction). A free base's quaternion
+            is normalised first; the ``bounded`` solver also moves q0 inside the joint limits.
+        solver: one of :data:`SOLVERS`: ``gn`` (thesis eq. 3.4), ``gn_eta`` (step-limited,
+            thesis §3.2.4), ``lm_fixed`` (DigitEyes eq. 5), ``lm`` (optimistix, adaptive
+            damping), ``bounded`` (trust region inside the joint limits).
+        config: a :class:`FitConfig` (default ``FitConfig()``).
+
+    Returns:
+        A :class:`FitResult`; q is always finite.
+
+    Raises:
+        InputError: wrong shapes, non-finite q0 or features, bad config values, unknown solver.
+    """
+    solver = solver_named(solver)
+    config = check_config(FitConfig() if config is None else config)
+    rig = as_rig(cameras)
+    feats = validate_features(model, rig, features)
+    q0 = validate_q(model, q0, name="q0")
+    return _fit_jit(model, rig, _as_arrays(feats), jnp.asarray(q0), solver, config)
+
+
+def fit_batch(model: Model, cameras, features, q0, *, solver: str = "lm",
+              config: FitConfig | None = None) -> FitResult:
+    """:func:`fit` over a leading batch axis: ``jax.vmap`` of the same solve, one compilation.
+
+    Args:
+        features: one Features per camera whose every array has a leading batch axis B.
+        q0: (B, n_q) starting states, or (n_q,) for the same start everywhere.
+
+    Returns:
+        A :class:`FitResult` whose fields have the leading axis B.
+    """
+    solver = solver_named(solver)
+    config = check_config(FitConfig() if config is None else config)
+    rig = as_rig(cameras)
+    feats = _validate_batch_features(model, rig, features)
+    B = int(np.asarray(feats[0].lines).shape[0])
+    q0s = _validate_batch_q(model, q0, B)
+    return _fit_batch_jit(model, rig, _as_arrays(feats), jnp.asarray(q0s), solver, config)
+
+
+def _as_arrays(feats: tuple[Features, ...]) -> tuple[Features, ...]:
+    """Features with every field a JAX array of the working precision (bools stay bools), so a
+    NumPy or float32 input does not trigger a new compilation."""
+    def conv(x):
+        a = np.asarray(x)
+        return jnp.asarray(a, dtype=bool if a.dtype == bool else float)
+
+    return tuple(jax.tree_util.tree_map(conv, f) for f in feats)
+
+
+def _validate_batch_q(model: Model, q0, B: int) -> np.ndarray:
+    try:
+        q = np.asarray(q0, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise InputError(f"q0: cannot convert to a float array ({err})") from err
+    if q.shape == (model.n_q,):
+        q = np.broadcast_to(q, (B, model.n_q))
+    if q.shape != (B, model.n_q):
+        raise InputError(f"q0: expected shape ({B}, {model.n_q}) or ({model.n_q},) for model {model.name!r}, "
+                         f"got {q.shape}")
+    bad = ~np.isfinite(q)
+    if bad.any():
+        b, i = np.argwhere(bad)[0]
+        raise InputError(f"q0[{b}]: non-finite value for {model.q_names[i]!r}")
+    return q
+
+
+def _validate_batch_features(model: Model, rig: tuple, features) -> tuple[Features, ...]:
+    """The checks of :func:`~jaxhand.features.validate_features`, vectorised over a batch."""
+    feats = (features,) if isinstance(features, Features) else tuple(features)
+    if len(feats) != len(rig):
+        raise InputError(f"features: expected one Features per camera ({len(rig)}), got {len(feats)}")
+    shapes = {"lines": (model.n_links, 3), "line_valid": (model.n_links,), "line_weight": (model.n_links,),
+              "tips": (model.n_tips, 2), "tip_valid": (model.n_tips,), "tip_weight": (model.n_tips,)}
+    B = None
+    for c, f in enumerate(feats):
+        for name, shape in shapes.items():
+            a = np.asarray(getattr(f, name))
+            if a.ndim != len(shape) + 1 or a.shape[1:] != shape:
+                raise InputError(f"features[{c}].{name}: expected shape (B, {', '.join(map(str, shape))}) for "
+                                 f"{model.name!r}, got {a.shape}")
+            if B is None:
+                B = a.shape[0]
+            elif a.shape[0] != B:
+                raise InputError(f"features[{c}].{name}: batch size {a.shape[0]} differs from {B}")
+        lines, tips = np.asarray(f.lines), np.asarray(f.tips)
+        lv, tv = np.asarray(f.line_valid), np.asarray(f.tip_valid)
+        if not np.all(np.isfinite(lines[lv])) or not np.all(np.isfinite(tips[tv])):
+            raise InputError(f"features[{c}]: a valid line or tip holds NaN or inf")
+        if lv.any() and not np.allclose(np.linalg.norm(lines[lv][:, :2], axis=-1), 1.0, atol=1e-6):
+            raise InputError(f"features[{c}].lines: (a, b) must be unit normals where valid")
+        for name in ("line_weight", "tip_weight"):
+            w = np.asarray(getattr(f, name))
+            if not np.all(np.isfinite(w)) or np.any(w < 0):
+                raise InputError(f"features[{c}].{name}: weights must be finite and >= 0")
+    if B == 0:
+        raise InputError("features: the batch is empty")
+    return feats
