@@ -22,6 +22,7 @@ from .model import (  # noqa: E402
     model_to_dict,
     save_model,
 )
+from .solve import SOLVERS, FitConfig, FitResult, Status, fit, fit_batch  # noqa: E402
 
 __version__ = "0.1.0"
 
@@ -31,4 +32,5 @@ __all__ = [
     "model_to_dict",
     "Orthographic", "Perspective", "as_rig", "load_camera", "save_camera",
     "Pose", "View", "forward", "project_pose", "views", "random_q", "validate_q",
+    "fit", "fit_batch", "FitConfig", "FitResult", "Status", "SOLVERS",
 ]
