@@ -16,6 +16,8 @@ from ._io import load_sequence as load_sequence
 from ._io import write_sequence as write_sequence
 from ._presets import PRESET_DESCRIPTIONS as PRESET_DESCRIPTIONS
 from ._presets import Sequence as Sequence
+from ._presets import fit_orthographic as fit_orthographic
+from ._presets import fit_perspective as fit_perspective
 from ._presets import make_preset as make_preset
 from ._presets import parse_size as parse_size
 from ._presets import preset_names as preset_names
@@ -23,6 +25,7 @@ from ._trajectory import joint_trajectory as joint_trajectory
 from ._trajectory import min_jerk_profile as min_jerk_profile
 from ._trajectory import minimum_jerk as minimum_jerk
 
-__all__ = ["RenderConfig", "RenderResult", "render_frame", "make_background", "Sequence", "make_preset",
-           "preset_names", "PRESET_DESCRIPTIONS", "parse_size", "joint_trajectory", "minimum_jerk",
-           "min_jerk_profile", "write_sequence", "load_sequence", "SequenceFolder"]
+__all__ = ["RenderConfig", "RenderResult", "render_frame", "make_background",
+           "Sequence", "make_preset", "preset_names", "PRESET_DESCRIPTIONS", "parse_size",
+           "fit_orthographic", "fit_perspective", "joint_trajectory", "minimum_jerk", "min_jerk_profile",
+           "write_sequence", "load_sequence", "SequenceFolder"]

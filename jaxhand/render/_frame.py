@@ -76,15 +76,22 @@ def _background(config: RenderConfig, size: tuple[int, int]) -> np.ndarray:
 
 
 def _shade(config: RenderConfig, normal: np.ndarray, view: np.ndarray, albedo: np.ndarray) -> np.ndarray:
-    """Lambert + Phong intensity in [0, 1] of surface samples (normal, view: (3, n); albedo: (n,))."""
+    """Lambert + Phong intensity in [0, 1] of surface samples.
+
+    ``albedo (ambient + (1 - ambient) max(n.l, 0)) + specular max(r.v, 0)^shininess`` with r the
+    light's mirror direction about n, so ``r.v = 2 (n.l)(n.v) - l.v``; no specular where n.l <= 0.
+
+    Args:
+        normal: (3, n) unit normals; view: (3, n) or (3, 1) unit vectors towards the camera;
+        albedo: (n,) per sample.
+    """
     light = np.asarray(config.light_dir, float)
     light = light / np.linalg.norm(light)
     n_l = light @ normal
-    lit = np.maximum(n_l, 0.0)
-    value = albedo * (config.ambient + (1.0 - config.ambient) * lit)
+    value = albedo * (config.ambient + (1.0 - config.ambient) * np.maximum(n_l, 0.0))
     if config.specular > 0:
-        reflect = 2.0 * n_l * normal - light[:, None]  # mirror direction of the light about the normal
-        r_v = np.maximum(np.sum(reflect * view, axis=0), 0.0)
+        n_v = np.einsum("ij,ij->j", normal, np.broadcast_to(view, normal.shape))
+        r_v = np.maximum(2.0 * n_l * n_v - light @ view, 0.0)
         value = value + config.specular * np.where(n_l > 0, r_v**config.shininess, 0.0)
     return np.clip(value, 0.0, 1.0)
 
@@ -120,22 +127,27 @@ def render_frame(model: Model, camera, q, config: RenderConfig | None = None, *,
     pills = pills_in_camera(camera, start, end, radius)
     zbuf = cast(grid, pills, use_bbox=use_bbox)
 
-    mask = zbuf.link_id >= 0
+    background = _background(config, (w, h))
     if config.mode == "binary":
-        fg = mask * float(config.foreground)
+        mask = zbuf.link_id >= 0
+        fg = float(config.foreground)
     else:
         albedo = np.asarray(config.albedo, float)
         if albedo.ndim == 1 and albedo.shape != (model.n_links,):
             raise InputError(f"albedo: expected one value or {model.n_links} (one per link of {model.name!r}), "
                              f"got {len(albedo)}")
         albedo = np.broadcast_to(albedo, (model.n_links,))
-        fmask, normal, view = pill_normals(grid, pills, zbuf)
-        fg = np.zeros(fmask.shape)
-        fg[fmask] = 255.0 * _shade(config, normal, view, albedo[zbuf.link_id[fmask]])
-    # Average the k x k samples of each pixel; the background fills the uncovered share.
-    coverage = mask.reshape(h, k, w, k).mean(axis=(1, 3))
-    fg_mean = fg.reshape(h, k, w, k).mean(axis=(1, 3))
-    image = fg_mean + (1.0 - coverage) * _background(config, (w, h))
+        mask, normal, view = pill_normals(grid, pills, zbuf)
+        fg = 255.0 * _shade(config, normal, view, albedo[zbuf.link_id[mask]])
+    if k == 1:
+        image = background.copy()
+        image[mask] = fg
+    else:
+        # Average the k x k samples of each pixel; the background fills the uncovered share.
+        samples = np.zeros(mask.shape)
+        samples[mask] = fg
+        coverage = mask.reshape(h, k, w, k).mean(axis=(1, 3))
+        image = samples.reshape(h, k, w, k).mean(axis=(1, 3)) + (1.0 - coverage) * background
     if config.blur_sigma_px > 0:
         image = cv2.GaussianBlur(image, (0, 0), config.blur_sigma_px)
     if config.noise_sigma > 0:

@@ -34,7 +34,8 @@ from ..kinematics import forward, validate_q
 from ..model import Model, builtin_model
 from ._trajectory import joint_trajectory
 
-__all__ = ["Sequence", "make_preset", "preset_names", "PRESET_DESCRIPTIONS", "parse_size", "frame_cameras"]
+__all__ = ["Sequence", "make_preset", "preset_names", "PRESET_DESCRIPTIONS", "parse_size", "fit_orthographic",
+           "fit_perspective"]
 
 
 @dataclass(frozen=True)
@@ -112,9 +113,10 @@ def _pill_extent_points(model: Model, qs: np.ndarray):
     return np.concatenate(pts), np.concatenate(rad)
 
 
-def frame_cameras(model: Model, qs, size, *, R=None, margin: float = 0.08) -> Orthographic:
+def fit_orthographic(model: Model, qs, size, *, R=None, margin: float = 0.08) -> Orthographic:
     """An orthographic camera with rotation R (default identity) that keeps every pill of every
-    state in ``qs`` inside the image with the given margin (fraction of the image size)."""
+    state in ``qs`` (n_q,) or (frames, n_q) inside the image with the given margin (fraction of the
+    image size)."""
     R = np.eye(3) if R is None else np.asarray(R, float)
     pts, rad = _pill_extent_points(model, np.atleast_2d(qs))
     # Grow each axis end by its radius along the camera's x and y axes so the outline fits.
@@ -122,9 +124,15 @@ def frame_cameras(model: Model, qs, size, *, R=None, margin: float = 0.08) -> Or
     return Orthographic.fit(grown, size=size, R=R, margin=margin)
 
 
-def _perspective_framing(model: Model, qs, size, eyes, up, *, margin: float = 0.08) -> tuple[Perspective, ...]:
-    """Identical pinhole cameras at ``eyes``, each aimed so that the sequence's pills are centred in
-    its image, with the one focal length that keeps every pill inside every image with the margin."""
+def fit_perspective(model: Model, qs, size, eyes, *, up=(0.0, -1.0, 0.0), margin: float = 0.08
+                    ) -> tuple[Perspective, ...]:
+    """Identical pinhole cameras at ``eyes`` (k, 3) mm, each aimed so that the pills of the states
+    ``qs`` are centred in its image, with the one focal length that keeps every pill inside every
+    image with the given margin; ``up`` is the world direction shown up.
+
+    Raises:
+        InputError: a pill reaches behind a camera.
+    """
     w, h = size
     pts, rad = _pill_extent_points(model, np.atleast_2d(qs))
     target = 0.5 * (pts.min(0) + pts.max(0))
@@ -214,7 +222,7 @@ def _two_finger_occlusion(frames: int, size) -> Sequence:
     ]
     times, key_times = _times(frames, 0.04, [0.0, 0.25, 0.5, 0.75, 1.0])
     q = joint_trajectory(m, keys, key_times, times)
-    cam = frame_cameras(m, q, size, R=_TILT_45)
+    cam = fit_orthographic(m, q, size, R=_TILT_45)
     return Sequence("two_finger_occlusion", m, (cam,), q, times, PRESET_DESCRIPTIONS["two_finger_occlusion"])
 
 
@@ -228,7 +236,7 @@ def _full_hand_spread_flex(frames: int, size) -> Sequence:
                   **_finger("index", -60, -75))
     times, key_times = _times(frames, 0.04, [0.0, 0.08, 0.4, 0.92, 1.0])
     q = joint_trajectory(m, [straight, straight, spread, flexed, flexed], key_times, times)
-    cam = frame_cameras(m, q, size, R=_TILT_45)
+    cam = fit_orthographic(m, q, size, R=_TILT_45)
     return Sequence("full_hand_spread_flex", m, (cam,), q, times, PRESET_DESCRIPTIONS["full_hand_spread_flex"])
 
 
@@ -252,7 +260,7 @@ def _index_thumb_grasp(frames: int, size) -> Sequence:
             pose((15, -15, -10), (10, 0, 0))]
     times, key_times = _times(frames, 0.04, np.linspace(0.0, 1.0, len(keys)))
     q = joint_trajectory(m, keys, key_times, times)
-    cam = frame_cameras(m, q, size)
+    cam = fit_orthographic(m, q, size)
     return Sequence("index_thumb_grasp", m, (cam,), q, times, PRESET_DESCRIPTIONS["index_thumb_grasp"])
 
 
@@ -292,7 +300,7 @@ def _two_camera_hand(frames: int, size) -> Sequence:
     pts = _pill_extent_points(m, q)[0]
     centre = 0.5 * (pts.min(0) + pts.max(0))
     eyes = [centre + np.array([side * half_base, -elev, -elev]) for side in (-1.0, 1.0)]
-    cams = _perspective_framing(m, q, size, eyes, (0.0, -1.0, 0.0))
+    cams = fit_perspective(m, q, size, eyes, up=(0.0, -1.0, 0.0))
     return Sequence("two_camera_hand", m, cams, q, times, PRESET_DESCRIPTIONS["two_camera_hand"])
 
 
@@ -328,7 +336,7 @@ def _mouse3d(frames: int, size) -> Sequence:
     centre = 0.5 * (pts.min(0) + pts.max(0))
     az = np.radians(35.0)
     eye = centre + 600.0 * np.array([np.sin(az) * np.sqrt(0.5), -np.cos(az) * np.sqrt(0.5), np.sqrt(0.5)])
-    cams = _perspective_framing(m, q, size, [eye], (0.0, 0.0, 1.0))
+    cams = fit_perspective(m, q, size, [eye], up=(0.0, 0.0, 1.0))
     return Sequence("mouse3d", m, cams, q, times, PRESET_DESCRIPTIONS["mouse3d"])
 
 

@@ -17,6 +17,7 @@ z-buffer keeps the nearest pill per pixel. The loop runs over pills (a few dozen
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +32,8 @@ _NEAR_MM = 1e-6
 # A cylinder axis shorter than this (squared, mm^2) is a sphere; its cylinder part is skipped
 # because the quadratic's leading coefficient vanishes.
 _MIN_AXIS_SQ = 1e-18
+# Rows choose lo (0) or hi (1) per axis: the 8 corners of a box.
+_CORNERS = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
 
 
 @dataclass(frozen=True)
@@ -48,15 +51,19 @@ class RayGrid:
 
     Sample ``(X, Y)`` of the ``(k H, k W)`` grid sits at pixel ``((X - (k - 1) / 2) / k, ...)``, so the
     centre sample of every ``k x k`` block is the pixel centre. ``xs``/``ys`` are those pixel
-    coordinates; the ray of a sample is ``origin + t * direction`` in camera coordinates.
+    coordinates; the ray of a sample is ``origin + t * direction`` in camera coordinates. The camera's
+    numbers are held as NumPy values (``scale``/``center`` for orthographic, ``K``/``kinv`` for
+    perspective cameras), read once per frame rather than once per pill.
     """
 
-    camera: object
     k: int
     xs: np.ndarray
     ys: np.ndarray
     perspective: bool
-    kinv: np.ndarray | None
+    scale: float = 1.0
+    center: tuple[float, float] = (0.0, 0.0)
+    K: np.ndarray | None = None
+    kinv: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -67,14 +74,17 @@ class RayGrid:
 
         Each component is an array broadcastable to (y1 - y0, x1 - x0) or a float.
         """
-        u = self.xs[x0:x1][None, :]
-        v = self.ys[y0:y1][:, None]
+        return self.rays_at(self.xs[x0:x1][None, :], self.ys[y0:y1][:, None])
+
+    def rays_at(self, u, v):
+        """Origin and direction components of the rays through pixel coordinates (u, v) (broadcastable)."""
         if not self.perspective:
-            cam = self.camera
-            s = float(cam.scale)
-            cx, cy = (float(c) for c in np.asarray(cam.center))
-            return ((u - cx) / s, (v - cy) / s, 0.0), (0.0, 0.0, 1.0)
+            s = self.scale
+            return ((u - self.center[0]) / s, (v - self.center[1]) / s, 0.0), (0.0, 0.0, 1.0)
         m = self.kinv
+        if m[2, 0] == 0.0 and m[2, 1] == 0.0 and m[0, 1] == 0.0 and m[1, 0] == 0.0:
+            # The usual K (no skew, last row 0 0 1): each direction component depends on one axis only.
+            return (0.0, 0.0, 0.0), ((m[0, 0] * u + m[0, 2]) / m[2, 2], (m[1, 1] * v + m[1, 2]) / m[2, 2], 1.0)
         dz = m[2, 0] * u + m[2, 1] * v + m[2, 2]
         dx = (m[0, 0] * u + m[0, 1] * v + m[0, 2]) / dz
         dy = (m[1, 0] * u + m[1, 1] * v + m[1, 2]) / dz
@@ -87,8 +97,10 @@ def ray_grid(camera, k: int = 1) -> RayGrid:
     xs = (np.arange(k * w) - (k - 1) / 2) / k
     ys = (np.arange(k * h) - (k - 1) / 2) / k
     if isinstance(camera, Orthographic):
-        return RayGrid(camera, k, xs, ys, False, None)
-    return RayGrid(camera, k, xs, ys, True, np.linalg.inv(np.asarray(camera.K, float)))
+        c = np.asarray(camera.center, float)
+        return RayGrid(k, xs, ys, False, scale=float(camera.scale), center=(float(c[0]), float(c[1])))
+    K = np.asarray(camera.K, float)
+    return RayGrid(k, xs, ys, True, K=K, kinv=np.linalg.inv(K))
 
 
 def pills_in_camera(camera, link_start_world, link_end_world, radius_mm) -> Pills:
@@ -103,20 +115,18 @@ def pills_in_camera(camera, link_start_world, link_end_world, radius_mm) -> Pill
 def _sample_range(lo_px: float, hi_px: float, k: int, n: int) -> tuple[int, int]:
     """Supersampled indices [i0, i1) whose pixel coordinates lie in [lo_px, hi_px], clipped to [0, n)."""
     c = (k - 1) / 2
-    i0 = int(np.clip(np.ceil(k * lo_px + c), 0, n))
-    i1 = int(np.clip(np.floor(k * hi_px + c) + 1, 0, n))
+    i0 = min(max(math.ceil(k * lo_px + c), 0), n)
+    i1 = min(max(math.floor(k * hi_px + c) + 1, 0), n)
     return i0, max(i0, i1)
 
 
 def _bbox(grid: RayGrid, a: np.ndarray, b: np.ndarray, r: float) -> tuple[int, int, int, int]:
     """Sample rows/columns (y0, y1, x0, x1) that can see the pill: its projected bounding box."""
-    cam = grid.camera
     h, w = grid.shape
     if not grid.perspective:
-        s = float(cam.scale)
-        c = np.asarray(cam.center, float)
-        lo = s * (np.minimum(a[:2], b[:2]) - r) + c
-        hi = s * (np.maximum(a[:2], b[:2]) + r) + c
+        s, (cx, cy) = grid.scale, grid.center
+        x_lo, x_hi = s * (min(a[0], b[0]) - r) + cx, s * (max(a[0], b[0]) + r) + cx
+        y_lo, y_hi = s * (min(a[1], b[1]) - r) + cy, s * (max(a[1], b[1]) + r) + cy
     else:
         # The pill lies inside the axis-aligned box of its ends grown by r; project its 8 corners.
         lo3, hi3 = np.minimum(a, b) - r, np.maximum(a, b) + r
@@ -124,12 +134,12 @@ def _bbox(grid: RayGrid, a: np.ndarray, b: np.ndarray, r: float) -> tuple[int, i
             return 0, 0, 0, 0  # entirely behind the camera
         if lo3[2] <= _NEAR_MM:
             return 0, h, 0, w  # straddles the camera plane: no finite box; test every ray
-        corners = np.array(np.meshgrid(*zip(lo3, hi3), indexing="ij")).reshape(3, -1).T
-        uvw = corners @ np.asarray(cam.K, float).T
+        corners = np.stack([lo3, hi3])[_CORNERS, [0, 1, 2]]
+        uvw = corners @ grid.K.T
         px = uvw[:, :2] / uvw[:, 2:3]
-        lo, hi = px.min(0), px.max(0)
-    x0, x1 = _sample_range(lo[0], hi[0], grid.k, w)
-    y0, y1 = _sample_range(lo[1], hi[1], grid.k, h)
+        (x_lo, y_lo), (x_hi, y_hi) = px.min(0), px.max(0)
+    x0, x1 = _sample_range(float(x_lo), float(x_hi), grid.k, w)
+    y0, y1 = _sample_range(float(y_lo), float(y_hi), grid.k, h)
     return y0, y1, x0, x1
 
 
@@ -236,35 +246,33 @@ def cast(grid: RayGrid, pills: Pills, *, use_bbox: bool = True) -> ZBuffer:
 def pill_normals(grid: RayGrid, pills: Pills, zbuf: ZBuffer):
     """Surface normals (camera frame, unit) and view directions at the foreground samples.
 
+    The normal at a surface point p of a pill is (p - c) / r, with c the closest point of its axis.
+
     Returns:
-        (mask, normal, view): mask (kH, kW) bool of foreground samples; normal and view (3, n) for
-        the samples in ``mask`` (row-major order), view being the unit vector from the surface
-        point towards the camera.
+        (mask, normal, view): mask (kH, kW) bool of foreground samples; normal (3, n) and view
+        (3, n) or (3, 1) for the samples in ``mask`` (row-major order), view being the unit vector
+        from the surface point towards the camera.
     """
     mask = zbuf.link_id >= 0
     ys, xs = np.nonzero(mask)  # (row, col) indices of foreground samples
     ids = zbuf.link_id[ys, xs]
     z = zbuf.depth[ys, xs]
-    u, v = grid.xs[xs], grid.ys[ys]
+    (ox, oy, _), (dx, dy, _) = grid.rays_at(grid.xs[xs], grid.ys[ys])
     if grid.perspective:
-        m = grid.kinv
-        dz = m[2, 0] * u + m[2, 1] * v + m[2, 2]
-        d = np.stack([(m[0, 0] * u + m[0, 1] * v + m[0, 2]) / dz, (m[1, 0] * u + m[1, 1] * v + m[1, 2]) / dz,
-                      np.ones_like(u)])
-        p = d * z  # origin is the camera centre and d.z = 1
-        view = -d / np.linalg.norm(d, axis=0)
+        px, py = dx * z, dy * z  # origin at the camera centre and d.z = 1
+        inv = 1.0 / np.sqrt(dx * dx + dy * dy + 1.0)
+        view = np.stack([-dx * inv, -dy * inv, -inv])
     else:
-        cam = grid.camera
-        s = float(cam.scale)
-        cx, cy = (float(c) for c in np.asarray(cam.center))
-        p = np.stack([(u - cx) / s, (v - cy) / s, z])
-        view = np.broadcast_to(np.array([[0.0], [0.0], [-1.0]]), p.shape)
-    a = pills.a[ids].T
-    ba = (pills.b - pills.a)[ids].T
-    baba = np.sum(ba * ba, axis=0)
-    # Closest axis point; guard: a zero-length axis (sphere) takes its single point.
-    s_ax = np.clip(np.sum((p - a) * ba, axis=0) / np.where(baba > 0, baba, 1.0), 0.0, 1.0)
-    n = p - a - s_ax * ba
-    norm = np.linalg.norm(n, axis=0)
-    n = n / np.where(norm > 0, norm, 1.0)
+        px, py = ox, oy
+        view = np.array([[0.0], [0.0], [-1.0]])
+    ba = pills.b - pills.a
+    baba = np.einsum("ij,ij->i", ba, ba)
+    # Guard: a zero-length axis (a sphere) takes its single point (s = 0).
+    inv_baba = np.where(baba > 0, 1.0 / np.where(baba > 0, baba, 1.0), 0.0)
+    # One small table per quantity, gathered by link id (1-D gathers are the cheap kind).
+    rx, ry, rz = px - pills.a[:, 0][ids], py - pills.a[:, 1][ids], z - pills.a[:, 2][ids]
+    bx, by, bz = ba[:, 0][ids], ba[:, 1][ids], ba[:, 2][ids]
+    s_ax = np.clip((rx * bx + ry * by + rz * bz) * inv_baba[ids], 0.0, 1.0)
+    inv_r = (1.0 / pills.radius)[ids]
+    n = np.stack([(rx - s_ax * bx) * inv_r, (ry - s_ax * by) * inv_r, (rz - s_ax * bz) * inv_r])
     return mask, n, view

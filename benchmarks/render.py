@@ -1,0 +1,201 @@
+"""Render benchmark: milliseconds per synthetic frame, ours against two peers, in one process.
+
+For hand21 (15 pills, poses of the ``full_hand_spread_flex`` preset) and two_fingers (6 pills, poses
+of ``two_finger_occlusion``), each seen by an orthographic camera (the preset's, tilted 45 degrees)
+and by a perspective camera 600 mm away, at 320x240 and 640x480, both binary and shaded frames are
+timed with :func:`jaxhand.render.render_frame` (forward kinematics, ray casting with a z-buffer,
+shading, 8-bit output and the ground-truth maps: the whole per-frame cost).
+
+Peers, on the same poses and cameras:
+
+- ``naive``: the same ray-pill maths evaluated on every pixel for every pill (no bounding boxes),
+  i.e. ``render_frame(..., use_bbox=False)``; its images equal ours bit for bit (checked).
+- ``hull`` (binary only): thesis app. C.1, each pill's surface sampled (two spheres of 16 x 9
+  points: a pill is the convex hull of its end spheres), projected, its 2D convex hull painted
+  with ``cv2.fillConvexPoly``. Its silhouette's IoU with ours is reported next to its time; it
+  produces no depth, link IDs or shading.
+
+Everything runs on one core (OpenCV and BLAS threads set to 1). Times are medians over all poses
+and repeats after a warm-up call; the first call (which compiles the jitted forward kinematics) is
+reported separately.
+
+Run ``python benchmarks/render.py`` (writes ``benchmarks/results/render.json``) or
+``python benchmarks/render.py --quick`` for a smoke run (no JSON unless ``--out`` is given).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # one core, before numpy loads
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import importlib.metadata  # noqa: E402
+import json  # noqa: E402
+import platform  # noqa: E402
+import statistics  # noqa: E402
+import subprocess  # noqa: E402
+import time  # noqa: E402
+from functools import partial  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import cv2  # noqa: E402
+import jax  # noqa: E402
+import numpy as np  # noqa: E402
+
+import jaxhand as jh  # noqa: E402
+from jaxhand.render import RenderConfig, fit_perspective, make_preset, render_frame  # noqa: E402
+from jaxhand.render._frame import pill_geometry  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+DEFAULT_OUT = REPO / "benchmarks" / "results" / "render.json"
+CASES = (("hand21", "full_hand_spread_flex"), ("two_fingers", "two_finger_occlusion"))
+SIZES = ((320, 240), (640, 480))
+MODES = ("binary", "shaded")
+KINDS = ("orthographic", "perspective")
+
+
+def _sphere_points(n_lon: int = 16, n_lat: int = 9) -> np.ndarray:
+    lat = np.linspace(-np.pi / 2, np.pi / 2, n_lat)
+    lon = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
+    la, lo = np.meshgrid(lat, lon)
+    return np.stack([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)], -1).reshape(-1, 3)
+
+
+_UNIT_SPHERE = _sphere_points()
+
+
+def hull_silhouette(model, camera, q) -> np.ndarray:
+    """Thesis app. C.1 peer: per pill, the convex hull of its projected surface points, painted."""
+    w, h = camera.size
+    start, end, radius = pill_geometry(model, q)
+    img = np.zeros((h, w), np.uint8)
+    shift = 4  # sub-pixel vertices: OpenCV takes fixed-point coordinates with 4 fractional bits
+    for a, b, r in zip(start, end, radius):  # the thesis paints one polygon per pill
+        pts = np.concatenate([a + r * _UNIT_SPHERE, b + r * _UNIT_SPHERE])
+        px, _ = camera.project(pts)
+        hull = cv2.convexHull(np.round(np.asarray(px) * (1 << shift)).astype(np.int32))
+        cv2.fillConvexPoly(img, hull, 255, cv2.LINE_8, shift)
+    return img
+
+
+def _median_ms(fn, args_list, repeats: int) -> float:
+    samples = []
+    for _ in range(repeats):
+        for args in args_list:
+            t0 = time.perf_counter()
+            fn(*args)
+            samples.append(time.perf_counter() - t0)
+    return 1e3 * statistics.median(samples)
+
+
+def _cameras(model, preset, size):
+    seq = make_preset(preset, frames=20, size=size)
+    ortho = seq.cameras[0]
+    pts = np.concatenate([np.asarray(jh.forward(model, q).link_end) for q in seq.q])
+    centre = 0.5 * (pts.min(0) + pts.max(0))
+    eye = centre + np.array([150.0, -250.0, -520.0])  # ~600 mm away, above and to the side
+    (persp,) = fit_perspective(model, seq.q, size, [eye])
+    return seq.q, {"orthographic": ortho, "perspective": persp}
+
+
+def _git(*args) -> str | None:
+    try:
+        out = subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True, timeout=10, check=True)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip()
+
+
+def _cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def environment() -> dict:
+    dirty = _git("status", "--porcelain", "--untracked-files=no", "--", "jaxhand/render", "benchmarks/render.py")
+    return {
+        "cpu": _cpu_name(), "threads": 1, "platform": f"{platform.system()} {platform.machine()}",
+        "python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__,
+        "jax": jax.__version__, "jaxlib": importlib.metadata.version("jaxlib"), "jaxhand": jh.__version__,
+        "commit": _git("rev-parse", "--short=12", "HEAD"), "dirty": None if dirty is None else bool(dirty),
+    }
+
+
+def run(quick: bool) -> dict:
+    cv2.setNumThreads(1)
+    n_poses, repeats, naive_poses = (4, 1, 2) if quick else (20, 3, 5)
+    results = []
+    for model_name, preset in CASES:
+        model = jh.builtin_model(model_name)
+        for size in SIZES:
+            qs, cams = _cameras(model, preset, size)
+            poses = qs[np.linspace(0, len(qs) - 1, n_poses).round().astype(int)]
+            for kind in KINDS:
+                cam = cams[kind]
+                for mode in MODES:
+                    cfg = RenderConfig(mode=mode)
+                    t0 = time.perf_counter()
+                    render_frame(model, cam, poses[0], cfg)
+                    first_ms = 1e3 * (time.perf_counter() - t0)
+                    ours = _median_ms(render_frame, [(model, cam, q, cfg) for q in poses], repeats)
+                    few = poses[np.linspace(0, n_poses - 1, naive_poses).round().astype(int)]
+                    naive = _median_ms(partial(render_frame, use_bbox=False), [(model, cam, q, cfg) for q in few], 1)
+                    same = all(np.array_equal(render_frame(model, cam, q, cfg).image,
+                                              render_frame(model, cam, q, cfg, use_bbox=False).image) for q in few)
+                    row = {"model": model_name, "camera": kind, "size": f"{size[0]}x{size[1]}", "mode": mode,
+                           "ours_median_ms": ours, "ours_first_call_ms": first_ms, "naive_median_ms": naive,
+                           "naive_over_ours": naive / ours, "naive_identical": same}
+                    if mode == "binary":
+                        row["hull_median_ms"] = _median_ms(hull_silhouette, [(model, cam, q) for q in poses], repeats)
+                        ious = []
+                        for q in poses:
+                            a = render_frame(model, cam, q, cfg).image > 0
+                            b = hull_silhouette(model, cam, q) > 0
+                            ious.append((a & b).sum() / max((a | b).sum(), 1))
+                        row["hull_iou_min"] = float(min(ious))
+                        row["hull_over_ours"] = row["hull_median_ms"] / ours
+                    results.append(row)
+                    print(_format_row(row), flush=True)
+    return {"benchmark": "render", "environment": environment(), "quick": quick,
+            "poses": n_poses, "repeats": repeats, "results": results,
+            "metrics": {f"render.{r['model']}.{r['camera']}.{r['size']}.{r['mode']}.median_ms": r["ours_median_ms"]
+                        for r in results}}
+
+
+HEADER = (f"{'model':12s} {'camera':12s} {'size':8s} {'mode':7s} {'ours ms':>8s} {'first ms':>9s} "
+          f"{'naive ms':>9s} {'naive/ours':>10s} {'hull ms':>8s} {'hull IoU':>8s}")
+
+
+def _format_row(r: dict) -> str:
+    hull = (f"{r['hull_median_ms']:8.2f} {r['hull_iou_min']:8.3f}" if "hull_median_ms" in r else f"{'-':>8s} {'-':>8s}")
+    return (f"{r['model']:12s} {r['camera']:12s} {r['size']:8s} {r['mode']:7s} {r['ours_median_ms']:8.2f} "
+            f"{r['ours_first_call_ms']:9.1f} {r['naive_median_ms']:9.1f} {r['naive_over_ours']:10.1f} {hull}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="few poses and repeats; no JSON unless --out")
+    parser.add_argument("--out", type=Path, default=None, help=f"JSON path (default {DEFAULT_OUT.relative_to(REPO)})")
+    args = parser.parse_args(argv)
+    env = environment()
+    print(f"render benchmark: {env['cpu']}, 1 thread, numpy {env['numpy']}, opencv {env['opencv']}, "
+          f"commit {env['commit']}{' (dirty)' if env['dirty'] else ''}")
+    print(HEADER)
+    data = run(args.quick)
+    out = args.out if args.out is not None else (None if args.quick else DEFAULT_OUT)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(data, indent=2) + "\n")
+        print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
