@@ -1,0 +1,326 @@
+"""The image front end's entry points: :func:`extract_features` and :func:`capture_templates`.
+
+Per camera (thesis ch. 4, DESIGN.md data flow):
+
+1. one jitted kinematics call gives the predicted link ends, depths, radii and tips in pixels,
+   converted to NumPy once;
+2. place the link samplers (§4.1) and compute the visibility windows (§4.3.3);
+3. sample every profile in one ``cv2.remap`` (§4.2);
+4. search every profile for both boundaries with the configured search (§4.3, app. D);
+5. fit both boundary lines of every link (RANSAC + PCA) and the axial line between them, or
+   offset a lone boundary by the radius (§4.4, DigitEyes §4);
+6. place the tip samplers on the terminal axial lines (eq. 4.1), sample them in a second remap
+   and take the strongest derivative of the right sign as the tip boundary (§11.1.1).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import jax.numpy as jnp
+import numpy as np
+
+from .._errors import InputError
+from ..camera import Perspective, as_rig
+from ..features import Features
+from ..kinematics import project_pose, validate_q
+from ..model import Model
+from ._config import ImageConfig
+from ._lines import axial_line, line_params, offset_towards, ransac_pca
+from ._sampling import as_grey, sample_profiles
+from ._state import ImageState
+from ._trackers import LinkSamplers, TipSamplers, place_link_samplers, place_tip_samplers
+from ._visibility import Visibility, compute_visibility, same_chain, window_masks
+from .searches import TEMPLATE_SEARCHES, Edges, Profiles, search_named
+from .searches._common import gaussian_derivative, masked_argmax, simple_derivative
+
+__all__ = ["extract_features", "capture_templates", "Diagnostics", "CameraDiagnostics", "as_images"]
+
+
+@dataclasses.dataclass(frozen=True)
+class CameraDiagnostics:
+    """What one camera's analysis saw and decided, for overlays like thesis figs. 4.2-4.23.
+
+    Attributes:
+        samplers: link sampler placement (centres, sample positions, ``ends`` for drawing).
+        visibility: pill outlines, truncated polygons, window polygons, depth order, visible share.
+        profiles: the sampled profiles, their usable samples, windows and templates.
+        edges: the search's raw result (positions in samples, strengths, surface if any).
+        edge_px: (links, samplers, 2, 2) boundary points in pixels (NaN where not found).
+        boundary_lines: (links, 2, 3) fitted boundary lines (a, b, rho).
+        boundary_valid: (links, 2) the boundary line was fitted.
+        inliers: (links, 2, samplers) RANSAC inliers of each boundary line.
+        axial_lines: (links, 3) the link features' lines (a, b, rho).
+        single_edge: (links,) the axial line came from one boundary offset by the radius.
+        tip_samplers: tip sampler placement (refined tips, directions, sample positions).
+        tip_edge_px: (tips, 2) tip boundary points found (NaN where none).
+        tip_strength: (tips,) derivative at the tip boundary, grey levels per pixel.
+    """
+
+    samplers: LinkSamplers
+    visibility: Visibility
+    profiles: Profiles
+    edges: Edges
+    edge_px: np.ndarray
+    boundary_lines: np.ndarray
+    boundary_valid: np.ndarray
+    inliers: np.ndarray
+    axial_lines: np.ndarray
+    single_edge: np.ndarray
+    tip_samplers: TipSamplers
+    tip_edge_px: np.ndarray
+    tip_strength: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class Diagnostics:
+    """Diagnostics of one :func:`extract_features` call.
+
+    Attributes:
+        method: the search used.
+        cameras: one :class:`CameraDiagnostics` per camera.
+        state: the image state after this frame (templates filled in for links that had none and
+            were seen unoccluded); pass it to the next frame.
+    """
+
+    method: str
+    cameras: tuple[CameraDiagnostics, ...]
+    state: ImageState
+
+
+def as_images(images, n_cameras: int, sizes: Sequence[tuple[int, int]]) -> list[np.ndarray]:
+    """Validate one image per camera and convert each once to float32 grey levels.
+
+    A single array is accepted for a one-camera rig.
+
+    Raises:
+        InputError: wrong count, type, dtype, shape or size, naming the image.
+    """
+    if isinstance(images, np.ndarray):
+        if n_cameras != 1:
+            raise InputError(f"images: expected a sequence of {n_cameras} images (one per camera), got one array")
+        images = [images]
+    try:
+        items = list(images)
+    except TypeError as err:
+        raise InputError(f"images: expected a sequence of images, got {type(images).__name__}") from err
+    if len(items) != n_cameras:
+        raise InputError(f"images: expected one image per camera ({n_cameras}), got {len(items)}")
+    return [as_grey(im, f"images[{i}]", sizes[i]) for i, im in enumerate(items)]
+
+
+def _layout(config: ImageConfig) -> tuple[int, int, float]:
+    s = config.samplers
+    return (s.per_link, s.points, float(s.scope))
+
+
+@dataclasses.dataclass(frozen=True)
+class _Observation:
+    """A view's predicted geometry, samplers, visibility and sampled profiles."""
+
+    start: np.ndarray
+    end: np.ndarray
+    tips: np.ndarray
+    samplers: LinkSamplers
+    visibility: Visibility
+    values: np.ndarray
+    usable: np.ndarray
+    window: np.ndarray
+
+
+def _observe(grey: np.ndarray, model: Model, camera, q: np.ndarray, chain: np.ndarray, config: ImageConfig
+             ) -> _Observation:
+    view = project_pose(model, camera, jnp.asarray(q))
+    start, end = np.asarray(view.link_start_px, float), np.asarray(view.link_end_px, float)
+    depth, radius = np.asarray(view.link_depth, float), np.asarray(view.link_radius_px, float)
+    samplers = place_link_samplers(start, end, radius, config.samplers)
+    if isinstance(camera, Perspective):
+        # A perspective camera shows each end's circle at its own size: radius scales as 1/depth.
+        mid = depth.mean(-1, keepdims=True)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r_ends = radius[:, None] * mid / depth
+    else:
+        r_ends = np.stack([radius, radius], -1)
+    r_ends = np.where(samplers.ok[:, None], r_ends, np.nan)
+    vis = compute_visibility(start, end, depth, r_ends[:, 0], r_ends[:, 1], chain, camera.size, config.visibility)
+    values, usable = sample_profiles(grey, samplers.points, config.samplers.interpolation)
+    window = window_masks(vis.windows, samplers.points) & usable
+    return _Observation(start=start, end=end, tips=np.asarray(view.tips_px, float), samplers=samplers,
+                        visibility=vis, values=values, usable=usable, window=window)
+
+
+def _edges_to_px(samplers: LinkSamplers, edges: Edges, centre: float) -> np.ndarray:
+    off = (edges.pos - centre) * samplers.spacing_px[:, None, None]  # (links, samplers, 2), px along the normal
+    pts = samplers.centres[:, :, None, :] + off[..., None] * samplers.normal[:, None, None, :]
+    ok = edges.valid & samplers.ok[:, None, None] & np.all(np.isfinite(pts), -1)
+    return np.where(ok[..., None], pts, np.nan), ok
+
+
+def _fit_links(obs: _Observation, edge_px: np.ndarray, edge_ok: np.ndarray, config: ImageConfig):
+    lc = config.lines
+    s = obs.samplers
+    pts = np.swapaxes(np.nan_to_num(edge_px), 1, 2)  # (links, 2, samplers, 2)
+    ok_pts = np.swapaxes(edge_ok, 1, 2)
+    p, v, ok, inliers = ransac_pca(pts, ok_pts, lc.tau_px, lc.min_inliers)
+    both = ok[:, 0] & ok[:, 1]
+    p_ax, v_ax = axial_line(p[:, 0], v[:, 0], p[:, 1], v[:, 1], lc.det_eps)
+    single = lc.single_edge & (ok[:, 0] ^ ok[:, 1])
+    k = np.where(ok[:, 0], 0, 1)
+    p_one = np.take_along_axis(p, k[:, None, None], 1)[:, 0]
+    v_one = np.take_along_axis(v, k[:, None, None], 1)[:, 0]
+    mid = 0.5 * (np.nan_to_num(obs.start) + np.nan_to_num(obs.end))
+    p_one = offset_towards(p_one, v_one, mid, s.radius_px)
+    p_ax = np.where(single[:, None], p_one, p_ax)
+    v_ax = np.where(single[:, None], v_one, v_ax)
+    v_ax = np.where((np.sum(v_ax * s.direction, -1) < 0)[:, None], -v_ax, v_ax)  # point from start to end
+    lines = line_params(p_ax, v_ax)
+    share = obs.visibility.visible_share
+    valid = s.ok & (both | single) & (share >= lc.min_visible) & np.all(np.isfinite(lines), -1)
+    weight = (share if lc.weight_by_visibility else np.ones_like(share)) * np.where(single, lc.single_edge_weight,
+                                                                                    1.0)
+    boundary = line_params(p, v)
+    lines = np.where(valid[:, None], lines, np.array([1.0, 0.0, 0.0]))
+    return lines, valid, np.where(valid, weight, 0.0), boundary, ok, inliers, single & valid, p_ax, v_ax
+
+
+def _tips(grey: np.ndarray, model: Model, obs: _Observation, line_ok: np.ndarray, p_ax: np.ndarray,
+          v_ax: np.ndarray, config: ImageConfig):
+    tc = config.tips
+    s = obs.samplers
+    tl = np.asarray(model.tip_links, int)
+    # The terminal axial line when it was measured, else the predicted link axis.
+    p = np.where(line_ok[tl, None], p_ax[tl], np.nan_to_num(obs.start[tl]))
+    v = np.where(line_ok[tl, None], v_ax[tl], s.direction[tl])
+    ts = place_tip_samplers(np.nan_to_num(obs.tips), p, v, s.radius_px[tl], tc)
+    values, usable = sample_profiles(grey, ts.points, config.samplers.interpolation)
+    if tc.sigma > 0:
+        d, d_ok, pos = gaussian_derivative(values, usable, tc.sigma)
+    else:
+        d, d_ok, pos = simple_derivative(values, usable)
+    # Outwards past the tip a bright hand gives way to background: a falling edge.
+    k, val, off = masked_argmax(-config.search.sign * d, d_ok, True)
+    found = np.isfinite(val)
+    strength = np.where(found & (ts.spacing_px > 0), val / np.where(ts.spacing_px > 0, ts.spacing_px, 1.0), 0.0)
+    along = (pos[k] + off - (tc.points - 1) / 2) * ts.spacing_px
+    centre = ts.refined + ts.radius_px[:, None] * ts.v0
+    edge = centre + along[:, None] * ts.v0
+    tip = edge - ts.radius_px[:, None] * ts.v0
+    seen = window_masks(obs.visibility.windows[tl], tip[:, None, :])[:, 0]
+    valid = (s.ok[tl] & found & (strength >= tc.min_strength) & (strength > 0) & seen
+             & (obs.visibility.visible_share[tl] >= config.lines.min_visible) & np.all(np.isfinite(tip), -1))
+    return (np.where(valid[:, None], tip, 0.0), valid, ts, np.where(valid[:, None], edge, np.nan),
+            np.where(valid, strength, 0.0))
+
+
+def _unoccluded(obs: _Observation, config: ImageConfig) -> np.ndarray:
+    """Links fit for a template: ok, visible enough, every profile sample inside the image."""
+    return (obs.samplers.ok & (obs.visibility.visible_share >= config.template_min_visible)
+            & obs.usable.all(axis=(1, 2)))
+
+
+def _prepare(images, model: Model, cameras, q, config: ImageConfig | None, name: str):
+    config = ImageConfig() if config is None else config
+    if not isinstance(config, ImageConfig):
+        raise InputError(f"config: expected an ImageConfig, got {type(config).__name__}")
+    rig = as_rig(cameras)
+    greys = as_images(images, len(rig), [c.size for c in rig])
+    q = validate_q(model, q, name=name)
+    chain = same_chain(model.link_frame, model.ancestors)
+    return config, rig, greys, q, chain
+
+
+def capture_templates(images, model: Model, cameras, q, config: ImageConfig | None = None,
+                      state: ImageState | None = None) -> ImageState:
+    """Store (or refresh) the profile templates of every link seen unoccluded at pose ``q``.
+
+    ``q`` should overlay the hand in the images (the hand-set initial pose of the first frame, or
+    a converged estimate). A link's template is taken only when its visible share is at least
+    ``config.template_min_visible`` and all its profiles lie inside the image; other links keep
+    the templates they had in ``state``.
+
+    Args:
+        images: one image per camera (a single array for one camera).
+        model: the model.
+        cameras: a camera or a rig.
+        q: (n_q,) the pose the images show.
+        config: the front end's settings (its sampler layout shapes the templates).
+        state: templates to update; None starts from none (a state with another layout is
+            replaced).
+
+    Returns:
+        The updated :class:`ImageState`.
+
+    Raises:
+        InputError: bad images, q or config.
+    """
+    config, rig, greys, q, chain = _prepare(images, model, cameras, q, config, "q")
+    layout = _layout(config)
+    if state is None or not state.matches(len(rig), model.n_links, layout):
+        state = ImageState.empty(len(rig), model.n_links, layout)
+    templates, valid = [], []
+    for c, (grey, cam) in enumerate(zip(greys, rig)):
+        obs = _observe(grey, model, cam, q, chain, config)
+        take = _unoccluded(obs, config)
+        templates.append(np.where(take[:, None, None], obs.values, state.templates[c]))
+        valid.append(take | state.template_valid[c])
+    return ImageState(templates=tuple(templates), template_valid=tuple(valid), layout=layout)
+
+
+def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig | None = None,
+                     state: ImageState | None = None) -> tuple[tuple[Features, ...], Diagnostics]:
+    """Link lines and tip points of every camera's image, searched around the predicted pose.
+
+    Args:
+        images: one image per camera, in the rig's order (a single array for one camera): 2-D
+            uint8 or float grey levels (0-255), or (H, W, 3) uint8 BGR; each must have its
+            camera's size. NaN pixels are allowed (profiles through them are dropped).
+        model: the model.
+        cameras: a camera or a rig.
+        q_pred: (n_q,) the predicted pose that places the trackers and the windows.
+        config: settings (default :class:`ImageConfig`, the WSSD search).
+        state: stored templates (for the "wssd" search). Links without a template get one from
+            this frame at ``q_pred`` when they are seen unoccluded, as the thesis's first frame
+            does with its hand-set pose; the updated state comes back in ``diagnostics.state``.
+
+    Returns:
+        (features, diagnostics): one :class:`~jaxhand.features.Features` per camera (lines with
+        unit normals oriented like :func:`~jaxhand.features.line_through` of each predicted link,
+        weights scaled by each link's visible share) and the :class:`Diagnostics`.
+
+    Raises:
+        InputError: bad images (count, type, dtype, shape, size), q_pred or config.
+    """
+    config, rig, greys, q, chain = _prepare(images, model, cameras, q_pred, config, "q_pred")
+    search = search_named(config.method)
+    layout = _layout(config)
+    if state is None or not state.matches(len(rig), model.n_links, layout):
+        state = ImageState.empty(len(rig), model.n_links, layout)
+    features, diags, templates, tvalid = [], [], [], []
+    sc = config.samplers
+    for c, (grey, cam) in enumerate(zip(greys, rig)):
+        obs = _observe(grey, model, cam, q, chain, config)
+        tmpl, tv = state.templates[c], state.template_valid[c]
+        if config.method in TEMPLATE_SEARCHES:
+            fill = _unoccluded(obs, config) & ~tv
+            tmpl = np.where(fill[:, None, None], obs.values, tmpl)
+            tv = tv | fill
+        templates.append(tmpl)
+        tvalid.append(tv)
+        profiles = Profiles(values=obs.values, usable=obs.usable, window=obs.window, centre=sc.centre,
+                            radius=sc.samples_per_radius, spacing_px=obs.samplers.spacing_px, templates=tmpl,
+                            template_valid=tv & obs.samplers.ok)
+        edges = search(profiles, config.search)
+        edge_px, edge_ok = _edges_to_px(obs.samplers, edges, sc.centre)
+        lines, valid, weight, boundary, bvalid, inliers, single, p_ax, v_ax = _fit_links(obs, edge_px, edge_ok, config)
+        tips, tip_valid, ts, tip_edge, tip_strength = _tips(grey, model, obs, valid, p_ax, v_ax, config)
+        features.append(Features(lines=jnp.asarray(lines), line_valid=jnp.asarray(valid),
+                                 line_weight=jnp.asarray(weight), tips=jnp.asarray(tips),
+                                 tip_valid=jnp.asarray(tip_valid),
+                                 tip_weight=jnp.asarray(tip_valid.astype(float))))
+        diags.append(CameraDiagnostics(samplers=obs.samplers, visibility=obs.visibility, profiles=profiles,
+                                       edges=edges, edge_px=edge_px, boundary_lines=boundary, boundary_valid=bvalid,
+                                       inliers=inliers, axial_lines=lines, single_edge=single, tip_samplers=ts,
+                                       tip_edge_px=tip_edge, tip_strength=tip_strength))
+    new_state = ImageState(templates=tuple(templates), template_valid=tuple(tvalid), layout=layout)
+    return tuple(features), Diagnostics(method=config.method, cameras=tuple(diags), state=new_state)

@@ -1,0 +1,139 @@
+"""Visibility ordering and window functions (thesis §4.3.3, figs. 4.12-4.18).
+
+Each link's pill is outlined in the image as the convex hull of its two end circles (the
+projected hemisphere outlines; equal radii give a stadium, a perspective camera gives each end its
+own radius), simplified (Douglas-Peucker). Every pill gets the mean depth of its two ends, and
+every pill is cut where nearer pills cover it (Boolean difference, shapely), which leaves the
+truncated polygons of fig. 4.17. Phalanges of one finger (links on one kinematic chain) never cut
+each other, as in the thesis. The window function of a profile is 1 where its samples fall inside
+its link's window polygon: the link's outline grown by ``window_pad`` radii (a strip of
+background), less the nearer pills grown by ``occluder_margin_px``. All geometry calls are
+shapely 2's vectorised array functions; the only Python loop runs over links to merge each one's
+occluders.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import shapely
+
+from ._config import VisibilityConfig
+
+__all__ = ["Visibility", "pill_outlines", "same_chain", "compute_visibility", "window_masks"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Visibility:
+    """The visibility of every link in one view.
+
+    Attributes:
+        outlines: (links,) shapely polygons, the simplified convex hull of each projected pill.
+        depth: (links,) mean depth of each pill (mm; larger is farther).
+        order: (links,) link indices from the farthest to the nearest (thesis fig. 4.15).
+        visible: (links,) truncated polygons: outline less the nearer pills of other chains.
+        windows: (links,) window polygons: grown outline less the grown nearer pills.
+        visible_share: (links,) area of the truncated polygon inside the image over the outline's
+            area (0 for an empty outline).
+    """
+
+    outlines: np.ndarray
+    depth: np.ndarray
+    order: np.ndarray
+    visible: np.ndarray
+    windows: np.ndarray
+    visible_share: np.ndarray
+
+
+def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.ndarray, radius_end: np.ndarray,
+                  arc_points: int, simplify_px: float) -> np.ndarray:
+    """Convex hulls of the projected pills, simplified (thesis figs. 4.13-4.14).
+
+    Args:
+        start_px, end_px: (links, 2) projected link ends.
+        radius_start, radius_end: (links,) radius in pixels at each end.
+        arc_points: vertices per half circle.
+        simplify_px: simplification tolerance.
+
+    Returns:
+        (links,) polygons; links with non-finite input or zero radius give empty polygons.
+    """
+    k = 2 * arc_points
+    a = 2 * np.pi * np.arange(k) / k
+    circle = np.stack([np.cos(a), np.sin(a)], -1)  # (k, 2)
+    s = np.asarray(start_px, float)
+    e = np.asarray(end_px, float)
+    rs = np.asarray(radius_start, float)
+    re = np.asarray(radius_end, float)
+    ok = (np.all(np.isfinite(s), -1) & np.all(np.isfinite(e), -1) & np.isfinite(rs) & np.isfinite(re)
+          & (rs > 0) & (re > 0))
+    cloud = np.concatenate([s[:, None] + rs[:, None, None] * circle, e[:, None] + re[:, None, None] * circle], 1)
+    cloud = np.where(ok[:, None, None], cloud, 0.0)
+    hulls = shapely.convex_hull(shapely.multipoints(cloud))
+    hulls = shapely.simplify(hulls, simplify_px) if simplify_px > 0 else hulls
+    return np.where(ok, hulls, shapely.Polygon())
+
+
+def same_chain(link_frame, ancestors: np.ndarray) -> np.ndarray:
+    """(links, links) True where two links lie on one kinematic chain (one is above the other)."""
+    f = np.asarray(link_frame, int)
+    a = np.asarray(ancestors, bool)[np.ix_(f, f)]
+    return a | a.T
+
+
+def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarray, radius_start: np.ndarray,
+                       radius_end: np.ndarray, chain: np.ndarray, image_size: tuple[int, int],
+                       config: VisibilityConfig) -> Visibility:
+    """Depth-sort the pills and cut each by the nearer pills of other chains (thesis §4.3.3).
+
+    Args:
+        start_px, end_px: (links, 2) projected link ends.
+        depth: (links, 2) depth of the two ends (mm).
+        radius_start, radius_end: (links,) radius in pixels at each end.
+        chain: (links, links) :func:`same_chain`.
+        image_size: (width, height), for the share of each link inside the image.
+        config: visibility settings.
+    """
+    outlines = pill_outlines(start_px, end_px, radius_start, radius_end, config.arc_points, config.simplify_px)
+    mean_depth = np.nan_to_num(np.asarray(depth, float).mean(-1), nan=np.inf, posinf=np.inf, neginf=np.inf)
+    order = np.argsort(-mean_depth, kind="stable")
+    radius = 0.5 * (np.nan_to_num(radius_start) + np.nan_to_num(radius_end))
+    grown = shapely.buffer(outlines, config.window_pad * radius, quad_segs=4)
+    L = len(outlines)
+    empty = shapely.is_empty(outlines)
+    if config.occlusion and L > 1:
+        nearer = (mean_depth[None, :] < mean_depth[:, None]) & ~np.asarray(chain, bool) & ~empty[None, :]
+        covers = shapely.buffer(outlines, config.occluder_margin_px, quad_segs=4) if config.occluder_margin_px > 0 \
+            else outlines
+        occl = np.array([shapely.union_all(outlines[nearer[i]]) for i in range(L)], dtype=object)
+        occl_grown = np.array([shapely.union_all(covers[nearer[i]]) for i in range(L)], dtype=object)
+        visible = shapely.difference(outlines, occl)
+        windows = shapely.difference(grown, occl_grown)
+    else:
+        visible, windows = outlines.copy(), grown
+    w, h = image_size
+    frame = shapely.box(-0.5, -0.5, w - 0.5, h - 0.5)
+    area = shapely.area(outlines)
+    share = np.where(area > 0, shapely.area(shapely.intersection(visible, frame)) / np.where(area > 0, area, 1.0), 0.0)
+    return Visibility(outlines=outlines, depth=mean_depth, order=order, visible=visible, windows=windows,
+                      visible_share=np.clip(share, 0.0, 1.0))
+
+
+def window_masks(polygons: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Window functions: True where a sample lies inside its link's polygon (thesis fig. 4.18).
+
+    Args:
+        polygons: (links,) window polygons.
+        points: (links, ..., 2) sample positions of each link's profiles (NaN gives False).
+
+    Returns:
+        (links, ...) boolean windows, from one vectorised ``shapely.contains_xy`` call.
+    """
+    pts = np.asarray(points, float)
+    geoms = np.asarray(polygons, dtype=object).reshape((-1,) + (1,) * (pts.ndim - 2))
+    shapely.prepare(geoms)
+    finite = np.all(np.isfinite(pts), -1)
+    x = np.where(finite, pts[..., 0], 0.0)
+    y = np.where(finite, pts[..., 1], 0.0)
+    return shapely.contains_xy(geoms, x, y) & finite
