@@ -66,17 +66,27 @@ def _sphere_points(n_lon: int = 16, n_lat: int = 9) -> np.ndarray:
 _UNIT_SPHERE = _sphere_points()
 
 
+def _project_numpy(camera, pts: np.ndarray) -> np.ndarray:
+    """Pixels of world points with the camera's numbers in NumPy (no per-call JAX dispatch)."""
+    p = pts @ np.asarray(camera.R, float).T + np.asarray(camera.t, float)
+    if isinstance(camera, jh.Orthographic):
+        return float(camera.scale) * p[..., :2] + np.asarray(camera.center, float)
+    u = p @ np.asarray(camera.K, float).T
+    return u[..., :2] / u[..., 2:3]
+
+
 def hull_silhouette(model, camera, q) -> np.ndarray:
     """Thesis app. C.1 peer: per pill, the convex hull of its projected surface points, painted."""
     w, h = camera.size
     start, end, radius = pill_geometry(model, q)
     img = np.zeros((h, w), np.uint8)
     shift = 4  # sub-pixel vertices: OpenCV takes fixed-point coordinates with 4 fractional bits
-    for a, b, r in zip(start, end, radius):  # the thesis paints one polygon per pill
-        pts = np.concatenate([a + r * _UNIT_SPHERE, b + r * _UNIT_SPHERE])
-        px, _ = camera.project(pts)
-        hull = cv2.convexHull(np.round(np.asarray(px) * (1 << shift)).astype(np.int32))
-        cv2.fillConvexPoly(img, hull, 255, cv2.LINE_8, shift)
+    # Surface samples of every pill (its two end spheres), projected in one call: (links, 2 S, 2).
+    pts = np.concatenate([start[:, None] + radius[:, None, None] * _UNIT_SPHERE,
+                          end[:, None] + radius[:, None, None] * _UNIT_SPHERE], axis=1)
+    px = np.round(_project_numpy(camera, pts) * (1 << shift)).astype(np.int32)
+    for k in range(len(px)):  # the thesis paints one polygon per pill
+        cv2.fillConvexPoly(img, cv2.convexHull(px[k]), 255, cv2.LINE_8, shift)
     return img
 
 
@@ -121,7 +131,8 @@ def _cpu_name() -> str:
 def environment() -> dict:
     dirty = _git("status", "--porcelain", "--untracked-files=no", "--", "jaxhand/render", "benchmarks/render.py")
     return {
-        "cpu": _cpu_name(), "threads": 1, "platform": f"{platform.system()} {platform.machine()}",
+        "cpu": _cpu_name(), "cpu_count": os.cpu_count(), "threads": 1, "load_average_1min": os.getloadavg()[0],
+        "platform": f"{platform.system()} {platform.machine()}",
         "python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__,
         "jax": jax.__version__, "jaxlib": importlib.metadata.version("jaxlib"), "jaxhand": jh.__version__,
         "commit": _git("rev-parse", "--short=12", "HEAD"), "dirty": None if dirty is None else bool(dirty),
@@ -185,7 +196,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=None, help=f"JSON path (default {DEFAULT_OUT.relative_to(REPO)})")
     args = parser.parse_args(argv)
     env = environment()
-    print(f"render benchmark: {env['cpu']}, 1 thread, numpy {env['numpy']}, opencv {env['opencv']}, "
+    print(f"render benchmark: {env['cpu']} ({env['cpu_count']} cores, load {env['load_average_1min']:.1f}), 1 thread, "
+          f"numpy {env['numpy']}, opencv {env['opencv']}, "
           f"commit {env['commit']}{' (dirty)' if env['dirty'] else ''}")
     print(HEADER)
     data = run(args.quick)
