@@ -16,7 +16,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 __all__ = ["Profiles", "Edges", "parabola_vertex", "simple_derivative", "gaussian_derivative",
            "derivative_kernel", "masked_argmax", "width_template", "correlate_shifts", "edges_about_centres",
-           "sample_at", "boundary_peaks"]
+           "sample_at", "boundary_peaks", "per_pixel"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,6 +71,13 @@ class Edges:
     valid: np.ndarray
     surface: np.ndarray | None = None
     shifts: np.ndarray | None = None
+
+
+def per_pixel(values: np.ndarray, spacing_px: np.ndarray) -> np.ndarray:
+    """Per-sample derivatives of (links, samplers) profiles as grey levels per pixel; a link without
+    samplers (spacing 0) gets 0."""
+    safe = np.where(spacing_px > 0, spacing_px, np.inf)  # Guard: 0 spacing means no samplers
+    return values / safe[:, None]
 
 
 def parabola_vertex(ym: np.ndarray, y0: np.ndarray, yp: np.ndarray) -> np.ndarray:
@@ -214,7 +221,7 @@ def boundary_peaks(d: np.ndarray, d_valid: np.ndarray, positions: np.ndarray, ra
         s = (sign if side == 0 else -sign) * d
         k, val, off = masked_argmax(s, allowed, subsample)
         found = np.isfinite(val)
-        st = np.where(found, val, 0.0) / profiles.spacing_px[:, None]
+        st = per_pixel(np.where(found, val, 0.0), profiles.spacing_px)
         pos.append(positions[k] + off * (positions[1] - positions[0] if len(positions) > 1 else 1.0))
         strength.append(st)
         valid.append(found & (st >= min_strength) & (st > 0))

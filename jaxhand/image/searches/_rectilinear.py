@@ -26,6 +26,7 @@ from ._common import (
     edges_about_centres,
     gaussian_derivative,
     masked_argmax,
+    per_pixel,
     sample_at,
     width_template,
 )
@@ -52,7 +53,7 @@ def _edges_from_line(profiles: Profiles, config: SearchConfig, C, shifts, curve_
     x = np.arange(m, dtype=float)
     y = c[..., 0, None] + c[..., 1, None] * x  # (links, samplers) crest displacement, samples
     # Correlating with a template of two unit peaks gives about twice the mean edge derivative.
-    strength = 0.5 * sample_at(C, y - shifts[0]) / profiles.spacing_px[:, None]
+    strength = 0.5 * per_pixel(sample_at(C, y - shifts[0]), profiles.spacing_px)
     inside = np.abs(y) <= shifts[-1]
     valid = curve_ok & fit_ok[:, None] & inside & (strength >= config.min_strength) & (strength > 0)
     pos = edges_about_centres(profiles.centre + y, 2 * profiles.radius)
