@@ -1,0 +1,147 @@
+"""Tracking accuracy and speed on the documents' experiments, reproduced on synthetic sequences.
+
+For each sequence (rendered in memory with exact ground truth) the tracker runs twice: with the
+image front end (the method the documents used for that experiment) and with an oracle front
+end that hands the solver the exact features of the true pose plus 0.5 px noise, which bounds
+what the solver and filter can do with perfect image analysis. Per run it reports the mean and
+max absolute joint error (deg), the 2-D tip error (px), frames tracked before the first loss,
+end-to-end frames per second of the tracker step (rendering excluded) and the median time per
+stage. Prints a table, saves ``benchmarks/results/tracking.json`` and one joint-angle plot per
+sequence.
+
+    .venv/bin/python benchmarks/tracking.py            # all sequences
+    .venv/bin/python benchmarks/tracking.py --quick    # fewer frames, no JSON
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from jaxhand.cli_track import image_extractor
+from jaxhand.features import features_from_pose
+from jaxhand.image import ImageConfig
+from jaxhand.render import make_preset, render_frame
+from jaxhand.run import accuracy_summary
+from jaxhand.track import TrackConfig, Tracker
+from jaxhand.viz import plot_joint_angles
+
+RESULTS = Path(__file__).parent / "results"
+
+# (sequence, front-end method, solver, steps per frame, frames): the documents' choice for each
+# experiment. Frames: each preset's motion sampled at 25 fps (10 fps for the DigitEyes ones).
+EXPERIMENTS = [
+    ("two_finger_occlusion", "wssd", "lm", 20, 80),           # thesis §6.1: the proposed method
+    ("full_hand_spread_flex", "imwplls", "bounded", 20, 100),  # thesis §6.2.2: alternative method, bounded
+    ("index_thumb_grasp", "imwplls", "lm", 20, 120),          # thesis §6.2.1 (real images there)
+    ("two_camera_hand", "gaussian", "lm", 20, 100),           # DigitEyes §6.2: 27 DOF, two cameras
+    ("mouse3d", "gaussian", "lm", 20, 150),                   # DigitEyes §6.1: 3D mouse, one camera
+]
+
+
+def oracle_extractor(model, cameras, truth, noise_px=0.5, seed=0):
+    rng = np.random.default_rng(seed)
+    k = {"i": 0}
+
+    def extract(images, q_pred, state):
+        f = features_from_pose(model, cameras, truth[k["i"]], noise_px=noise_px, rng=rng)
+        k["i"] += 1
+        return f, state, {}
+
+    return extract
+
+
+def run(seq, images, extract, config: TrackConfig) -> dict:
+    tracker = Tracker(seq.model, seq.cameras, extract, config, dt_s=float(seq.times_s[1] - seq.times_s[0]))
+    state = tracker.init(seq.q[0])
+    reports = []
+    for k, imgs in enumerate(images):
+        state, rep = tracker.step(state, imgs, k, float(seq.times_s[k]))
+        reports.append(rep)
+    steady = reports[1:]  # frame 0 pays for compilation
+    total = [sum(v for key, v in r.timings_s.items() if "." not in key) for r in steady]
+    q_f = np.stack([r.q_filtered for r in reports])
+    acc = accuracy_summary(seq.model, seq.cameras, q_f, seq.q)
+    q_s = np.stack([r.q_solved for r in reports])
+    acc_solved = accuracy_summary(seq.model, seq.cameras, q_s, seq.q)
+    lost = [r.frame for r in reports if r.lost]
+    stages = sorted({key for r in steady for key in r.timings_s})
+    return {
+        "joint_error_mean_deg": acc["joint_error_deg"]["mean"], "joint_error_max_deg": acc["joint_error_deg"]["max"],
+        "per_joint_mean_deg": acc["joint_error_deg"]["per_joint_mean"],
+        "solved_joint_error_mean_deg": acc_solved["joint_error_deg"]["mean"],
+        "solved_tip_error_mean_px": acc_solved["tip_error_px"]["mean"],
+        "tip_error_mean_px": acc["tip_error_px"]["mean"], "tip_error_max_px": acc["tip_error_px"]["max"],
+        "frames": len(reports), "frames_before_loss": lost[0] if lost else len(reports), "lost_frames": len(lost),
+        "fps_end_to_end": len(steady) / sum(total), "compile_first_frame_s": sum(reports[0].timings_s.values()),
+        "median_ms": {s: 1e3 * float(np.median([r.timings_s.get(s, 0.0) for r in steady])) for s in stages},
+        "q_filtered": q_f, "q_solved": q_s,
+    }
+
+
+def environment() -> dict:
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=Path(__file__).parent).stdout.strip()
+    except OSError:
+        commit = ""
+    return {"jax": jax.__version__, "backend": jax.default_backend(), "cpu": platform.processor() or platform.machine(),
+            "cpus": os.cpu_count(), "python": platform.python_version(), "commit": commit}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="12 frames per sequence, no JSON")
+    parser.add_argument("--only", help="run one sequence")
+    parser.add_argument("--frames", type=int, help="frames per sequence (default: each experiment's own)")
+    args = parser.parse_args(argv)
+    rows, out = [], {"environment": environment(), "sequences": {}}
+    RESULTS.mkdir(exist_ok=True)
+    for name, method, solver, steps, frames in EXPERIMENTS:
+        if args.only and name != args.only:
+            continue
+        seq = make_preset(name, frames=12 if args.quick else (args.frames or frames))
+        t0 = time.perf_counter()
+        images = [[render_frame(seq.model, c, q).image for c in seq.cameras] for q in seq.q]
+        render_s = time.perf_counter() - t0
+        config = TrackConfig(solver=solver, max_steps=steps, theta=0.85)
+        entry = {"method": method, "solver": solver, "steps": steps, "theta": 0.85, "render_s": render_s}
+        for label, extract in (
+                (method, image_extractor(seq.model, seq.cameras, ImageConfig(method=method))),
+                ("exact+0.5px", oracle_extractor(seq.model, seq.cameras, seq.q))):
+            r = run(seq, images, extract, config)
+            entry[label] = {k: v for k, v in r.items() if not k.startswith("q_")}
+            rows.append((name, label, solver, r))
+            if label == method and not args.quick:
+                plot_joint_angles(seq.model, seq.times_s, r["q_filtered"], RESULTS / f"tracking_{name}.png",
+                                  q_truth=seq.q, q_raw=r["q_solved"],
+                                  title=f"{name} ({method}, {solver}): filtered (solid) vs truth (dotted)")
+        out["sequences"][name] = entry
+    head = (f"{'sequence':22s} {'features':12s} {'solver':8s} {'mean°':>6s} {'max°':>6s} {'tip px':>7s} "
+            f"{'raw°':>6s} "
+            f"{'before loss':>11s} {'fps':>7s}  median ms per stage")
+    print(head)
+    print("-" * len(head))
+    for name, label, solver, r in rows:
+        stages = ", ".join(f"{k} {v:.2f}" for k, v in r["median_ms"].items())
+        print(f"{name:22s} {label:12s} {solver:8s} {r['joint_error_mean_deg']:6.2f} {r['joint_error_max_deg']:6.1f} "
+              f"{r['tip_error_mean_px']:7.2f} {r['solved_joint_error_mean_deg']:6.2f} "
+              f"{r['frames_before_loss']:5d}/{r['frames']:<5d} "
+              f"{r['fps_end_to_end']:7.1f}  {stages}")
+    if not args.quick:
+        path = RESULTS / ("tracking.json" if not args.only else f"tracking_{args.only}.json")
+        path.write_text(json.dumps(out, indent=2) + "\n")
+        print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
