@@ -26,6 +26,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
@@ -103,14 +104,13 @@ def parse_size(size) -> tuple[int, int]:
 # ---- cameras that frame a whole sequence ----
 
 def _pill_extent_points(model: Model, qs: np.ndarray):
-    """Axis ends of every link over all frames (m, 3) and their radii (m,)."""
-    pts, rad = [], []
-    r = np.asarray(model.link_radius_mm)
-    for q in qs:
-        pose = forward(model, q)
-        pts += [np.asarray(pose.link_start), np.asarray(pose.link_end)]
-        rad += [r, r]
-    return np.concatenate(pts), np.concatenate(rad)
+    """Axis ends of every link over all states (2 frames links, 3) and their radii."""
+    # One jitted call per state: compiled once per model structure, whatever the frame count
+    # (a vmap over the states would compile again for every new count).
+    poses = [forward(model, jnp.asarray(q, dtype=jnp.float64)) for q in np.atleast_2d(qs)]
+    pts = np.concatenate([np.asarray(p.link_start) for p in poses] + [np.asarray(p.link_end) for p in poses])
+    rad = np.tile(np.asarray(model.link_radius_mm), 2 * len(poses))
+    return pts, rad
 
 
 def fit_orthographic(model: Model, qs, size, *, R=None, margin: float = 0.08) -> Orthographic:
@@ -134,11 +134,14 @@ def fit_perspective(model: Model, qs, size, eyes, *, up=(0.0, -1.0, 0.0), margin
         InputError: a pill reaches behind a camera.
     """
     w, h = size
+    eyes = np.atleast_2d(np.asarray(eyes, float))
+    if eyes.ndim != 2 or eyes.shape[1] != 3 or not np.all(np.isfinite(eyes)):
+        raise InputError(f"eyes: expected camera centres of shape (k, 3) in mm, got shape {eyes.shape}")
     pts, rad = _pill_extent_points(model, np.atleast_2d(qs))
     target = 0.5 * (pts.min(0) + pts.max(0))
     half = np.array([(w - 1) / 2, (h - 1) / 2]) * (1 - 2 * margin)
     poses, f = [], np.inf
-    for eye in np.atleast_2d(np.asarray(eyes, float)):
+    for eye in eyes:
         aim = target
         for _ in range(4):  # re-aim at the middle of the normalised image extent; converges in a few steps
             R = look_at_rotation(eye, aim, up)
@@ -151,7 +154,8 @@ def fit_perspective(model: Model, qs, size, eyes, *, up=(0.0, -1.0, 0.0), margin
             hi = (p[:, :2] / p[:, 2:3] + grow).max(0)
             mid = 0.5 * (lo + hi)
             aim = eye + R.T @ np.array([mid[0], mid[1], 1.0])
-        f = min(f, float(np.min(half / np.maximum(hi - mid, 1e-9))))
+        # Extent about the principal point (the centre of the image) in the final orientation.
+        f = min(f, float(np.min(half / np.maximum(np.maximum(-lo, hi), 1e-9))))
         poses.append((R, eye))
     K = np.array([[f, 0.0, (w - 1) / 2], [0.0, f, (h - 1) / 2], [0.0, 0.0, 1.0]])
     return tuple(Perspective(K=K, R=R, t=-R @ eye, size=(w, h)) for R, eye in poses)
