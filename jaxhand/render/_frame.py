@@ -42,7 +42,9 @@ class RenderResult:
             background.
         visible_fraction: (links,) visible pixels of each link over the pixels its pill covers when
             rendered alone (0 for a pill that covers no pixel of the image). Both counts are taken
-            inside the image, so a pill cut by the image border is not counted as occluded.
+            inside the image, so a pill cut by the image border is not counted as occluded. Pills
+            next to each other on a finger share their joint sphere, and the nearer (or larger) one
+            shows there, so an unoccluded link typically has 0.6-0.95, not 1.
         visible_px: (links,) pixels showing each link.
         alone_px: (links,) pixels each pill covers when rendered alone.
     """

@@ -202,7 +202,8 @@ def _readme(seq: Sequence, config: RenderConfig, maps: bool) -> str:
         "",
         f"{seq.description}",
         "",
-        f"Written by `jaxhand synth` (format `{FORMAT}` version {FORMAT_VERSION}): {seq.n_frames} frames of "
+        f"Written by `jaxhand synth` / `jaxhand.render.write_sequence` (format `{FORMAT}` version "
+        f"{FORMAT_VERSION}): {seq.n_frames} frames of "
         f"{w}x{h} 8-bit grey PNG ({config.mode}), {n_cams} camera(s), model `{seq.model.name}`.",
         "",
         "## Files",
