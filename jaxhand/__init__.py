@@ -11,6 +11,7 @@ _jax.config.update("jax_enable_x64", True)
 
 from ._errors import CameraError, InputError, JaxhandError, ModelFileError  # noqa: E402
 from .camera import Orthographic, Perspective, as_rig, load_camera, save_camera  # noqa: E402
+from .image import ImageConfig, ImageState, capture_templates, extract_features  # noqa: E402
 from .kinematics import Pose, View, forward, project_pose, random_q, validate_q, views  # noqa: E402
 from .model import (  # noqa: E402
     Model,
@@ -33,4 +34,5 @@ __all__ = [
     "Orthographic", "Perspective", "as_rig", "load_camera", "save_camera",
     "Pose", "View", "forward", "project_pose", "views", "random_q", "validate_q",
     "fit", "fit_batch", "FitConfig", "FitResult", "Status", "SOLVERS",
+    "extract_features", "capture_templates", "ImageConfig", "ImageState",
 ]

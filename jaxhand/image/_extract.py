@@ -16,6 +16,7 @@ Per camera (thesis ch. 4, DESIGN.md data flow):
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Sequence
 
 import jax.numpy as jnp
@@ -82,11 +83,27 @@ class Diagnostics:
         cameras: one :class:`CameraDiagnostics` per camera.
         state: the image state after this frame (templates filled in for links that had none and
             were seen unoccluded); pass it to the next frame.
+        timings_s: wall time of each stage summed over the cameras (s): "kinematics", "samplers",
+            "visibility", "sampling", "search", "lines", "tips".
     """
 
     method: str
     cameras: tuple[CameraDiagnostics, ...]
     state: ImageState
+    timings_s: dict[str, float] = dataclasses.field(default_factory=dict)
+
+
+class _Clock:
+    """Accumulates the wall time of named stages."""
+
+    def __init__(self):
+        self.totals: dict[str, float] = {}
+        self._t = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        t = time.perf_counter()
+        self.totals[name] = self.totals.get(name, 0.0) + (t - self._t)
+        self._t = t
 
 
 def as_images(images, n_cameras: int, sizes: Sequence[tuple[int, int]]) -> list[np.ndarray]:
@@ -129,12 +146,15 @@ class _Observation:
     window: np.ndarray
 
 
-def _observe(grey: np.ndarray, model: Model, camera, q: np.ndarray, chain: np.ndarray, config: ImageConfig
-             ) -> _Observation:
+def _observe(grey: np.ndarray, model: Model, camera, q: np.ndarray, chain: np.ndarray, config: ImageConfig,
+             clock: _Clock | None = None) -> _Observation:
+    clock = _Clock() if clock is None else clock
     view = project_pose(model, camera, jnp.asarray(q))
     start, end = np.asarray(view.link_start_px, float), np.asarray(view.link_end_px, float)
     depth, radius = np.asarray(view.link_depth, float), np.asarray(view.link_radius_px, float)
+    clock.lap("kinematics")
     samplers = place_link_samplers(start, end, radius, config.samplers)
+    clock.lap("samplers")
     if isinstance(camera, Perspective):
         # A perspective camera shows each end's circle at its own size: radius scales as 1/depth.
         mid = depth.mean(-1, keepdims=True)
@@ -144,8 +164,11 @@ def _observe(grey: np.ndarray, model: Model, camera, q: np.ndarray, chain: np.nd
         r_ends = np.stack([radius, radius], -1)
     r_ends = np.where(samplers.ok[:, None], r_ends, np.nan)
     vis = compute_visibility(start, end, depth, r_ends[:, 0], r_ends[:, 1], chain, camera.size, config.visibility)
+    clock.lap("visibility")
     values, usable = sample_profiles(grey, samplers.points, config.samplers.interpolation)
+    clock.lap("sampling")
     window = window_masks(vis.windows, samplers.points) & usable
+    clock.lap("visibility")
     return _Observation(start=start, end=end, tips=np.asarray(view.tips_px, float), samplers=samplers,
                         visibility=vis, values=values, usable=usable, window=window)
 
@@ -298,8 +321,9 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
         state = ImageState.empty(len(rig), model.n_links, layout)
     features, diags, templates, tvalid = [], [], [], []
     sc = config.samplers
+    clock = _Clock()
     for c, (grey, cam) in enumerate(zip(greys, rig)):
-        obs = _observe(grey, model, cam, q, chain, config)
+        obs = _observe(grey, model, cam, q, chain, config, clock)
         tmpl, tv = state.templates[c], state.template_valid[c]
         if config.method in TEMPLATE_SEARCHES:
             fill = _unoccluded(obs, config) & ~tv
@@ -310,10 +334,14 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
         profiles = Profiles(values=obs.values, usable=obs.usable, window=obs.window, centre=sc.centre,
                             radius=sc.samples_per_radius, spacing_px=obs.samplers.spacing_px, templates=tmpl,
                             template_valid=tv & obs.samplers.ok)
+        clock.lap("search")  # template bookkeeping counts with the search
         edges = search(profiles, config.search)
+        clock.lap("search")
         edge_px, edge_ok = _edges_to_px(obs.samplers, edges, sc.centre)
         lines, valid, weight, boundary, bvalid, inliers, single, p_ax, v_ax = _fit_links(obs, edge_px, edge_ok, config)
+        clock.lap("lines")
         tips, tip_valid, ts, tip_edge, tip_strength = _tips(grey, model, obs, valid, p_ax, v_ax, config)
+        clock.lap("tips")
         features.append(Features(lines=jnp.asarray(lines), line_valid=jnp.asarray(valid),
                                  line_weight=jnp.asarray(weight), tips=jnp.asarray(tips),
                                  tip_valid=jnp.asarray(tip_valid),
@@ -323,4 +351,5 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
                                        inliers=inliers, axial_lines=lines, single_edge=single, tip_samplers=ts,
                                        tip_edge_px=tip_edge, tip_strength=tip_strength))
     new_state = ImageState(templates=tuple(templates), template_valid=tuple(tvalid), layout=layout)
-    return tuple(features), Diagnostics(method=config.method, cameras=tuple(diags), state=new_state)
+    return tuple(features), Diagnostics(method=config.method, cameras=tuple(diags), state=new_state,
+                                        timings_s=dict(clock.totals))

@@ -103,11 +103,19 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
     L = len(outlines)
     empty = shapely.is_empty(outlines)
     if config.occlusion and L > 1:
-        nearer = (mean_depth[None, :] < mean_depth[:, None]) & ~np.asarray(chain, bool) & ~empty[None, :]
         covers = shapely.buffer(outlines, config.occluder_margin_px, quad_segs=4) if config.occluder_margin_px > 0 \
             else outlines
-        occl = np.array([shapely.union_all(outlines[nearer[i]]) for i in range(L)], dtype=object)
-        occl_grown = np.array([shapely.union_all(covers[nearer[i]]) for i in range(L)], dtype=object)
+        # Only nearer pills of other chains whose bounding boxes meet this one's can cut it.
+        b = np.nan_to_num(shapely.bounds(grown), nan=0.0)
+        c = np.nan_to_num(shapely.bounds(covers), nan=0.0)
+        meet = ((c[None, :, 0] <= b[:, None, 2]) & (c[None, :, 2] >= b[:, None, 0])
+                & (c[None, :, 1] <= b[:, None, 3]) & (c[None, :, 3] >= b[:, None, 1]))
+        nearer = (mean_depth[None, :] < mean_depth[:, None]) & ~np.asarray(chain, bool) & ~empty[None, :] & meet
+        none = shapely.Polygon()
+        occl = np.array([shapely.union_all(outlines[nearer[i]]) if nearer[i].any() else none for i in range(L)],
+                        dtype=object)
+        occl_grown = np.array([shapely.union_all(covers[nearer[i]]) if nearer[i].any() else none for i in range(L)],
+                              dtype=object)
         visible = shapely.difference(outlines, occl)
         windows = shapely.difference(grown, occl_grown)
     else:
