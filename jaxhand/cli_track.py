@@ -119,8 +119,9 @@ def _track(args) -> int:
     return 0
 
 
-def print_summary(summary: dict, out: Path, file=sys.stdout) -> None:
+def print_summary(summary: dict, out: Path, file=None) -> None:
     """A short human-readable account of a tracking run and where its files are."""
+    file = sys.stdout if file is None else file
     print(f"tracked {summary['frames']} frames of {summary['model']} "
           f"({summary.get('frames_per_second_end_to_end', 0):.1f} frames/s end to end, "
           f"{summary.get('frames_per_second_steady', 0):.1f} frames/s steady); "
