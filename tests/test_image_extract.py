@@ -242,18 +242,26 @@ def test_templates_state(occlusion):
     m, cam, q_apart, img_apart, q, img = occlusion
     cfg = ImageConfig()
     st = capture_templates(img_apart, m, cam, q_apart, cfg)
-    shares = extract_features(img_apart, m, cam, q_apart, cfg.replace(method="gaussian"))[1].cameras[0]
-    want = shares.visibility.visible_share >= cfg.template_min_visible
-    assert np.array_equal(st.template_valid[0], want) and want.sum() >= 4
+    seen_apart = extract_features(img_apart, m, cam, q_apart, cfg.replace(method="gaussian"))[1].cameras[0]
+    want = seen_apart.visibility.visible_share >= cfg.template_min_visible
+    assert np.array_equal(st.template_valid[0], want) and want.sum() >= 5
     assert st.templates[0].shape == (m.n_links, cfg.samplers.per_link, cfg.samplers.points)
-    # extract without a state fills templates of the links seen unoccluded at q_pred
+    # the mask holds the samples that showed each link: its window
+    p = seen_apart.profiles
+    assert np.array_equal(st.template_mask[0][want], (p.window & p.usable)[want])
+    # extract without a state fills templates of the links seen at q_pred
     _, diag = extract_features(img, m, cam, q, cfg)
     assert isinstance(diag.state, ImageState)
     assert diag.state.template_valid[0].any() and not diag.state.template_valid[0].all()
-    # capturing again at the occluded pose keeps the earlier templates of links now hidden
+    # capturing at the occluded pose overwrites only the samples that show each link now
     st2 = capture_templates(img, m, cam, q, cfg, st)
+    now = extract_features(img, m, cam, q, cfg.replace(method="gaussian"))[1].cameras[0].profiles
     pip = m.link_lookup("middle_pip")
-    assert st2.template_valid[0][pip] and np.array_equal(st2.templates[0][pip], st.templates[0][pip])
+    seen = (now.window & now.usable)[pip]
+    assert seen.any() and not seen.all()
+    assert np.array_equal(st2.templates[0][pip][seen], now.values[pip][seen])
+    assert np.array_equal(st2.templates[0][pip][~seen], st.templates[0][pip][~seen])
+    assert np.array_equal(st2.template_mask[0][pip], st.template_mask[0][pip] | seen)
     # another sampler layout replaces the state instead of mixing shapes
     other = cfg.replace(samplers=SamplerConfig(points=20))
     _, diag = extract_features(img, m, cam, q, other, st)

@@ -250,3 +250,17 @@ def test_as_grey_converts_once():
     g = as_grey(bgr)
     assert g.dtype == np.float32 and g.shape == (4, 5) and np.allclose(g, round(0.299 * 255))
     assert as_grey(np.ones((4, 5, 1), np.float64)).shape == (4, 5)
+
+
+def test_wssd_with_a_partial_template():
+    # a template that saw only the first boundary and half the bar still places the bar
+    prof = _synthetic_profiles(shift=1.5)
+    mask = np.zeros(prof.values.shape, bool)
+    mask[..., :20] = True
+    partial = Profiles(values=prof.values, usable=prof.usable, window=prof.window, centre=prof.centre,
+                       radius=prof.radius, spacing_px=prof.spacing_px, templates=np.where(mask, prof.templates, 0.0),
+                       template_valid=prof.template_valid, template_mask=mask)
+    edges = search_named("wssd")(partial, SearchConfig())
+    i = np.arange(6)
+    want = 19.5 + 1.5 + 0.1 * i[None, :] * np.arange(3)[:, None]
+    assert edges.valid.all() and np.allclose(edges.pos.mean(-1), want, atol=0.3)

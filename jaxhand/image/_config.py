@@ -109,7 +109,7 @@ class SearchConfig:
     sigma: float = 1.0
     template_sigma: float = 0.5
     search_window: float = 1.0
-    max_shift: float = 0.75
+    max_shift: float = 1.0
     subsample: bool = True
     crest_floor: float = 0.5
     crest_halfwidth: float = 0.25
@@ -247,8 +247,8 @@ class ImageConfig:
         visibility: visibility ordering and windows.
         lines: line fitting and link validity.
         tips: tip features.
-        template_min_visible: a link's template is captured or refreshed only when at least this
-            share of its polygon is visible and its profiles lie wholly inside the image.
+        template_min_visible: a view updates a link's template only when at least this share of
+            the link's outline is visible (and then only the samples that show it).
     """
 
     method: str = "wssd"
@@ -257,15 +257,15 @@ class ImageConfig:
     visibility: VisibilityConfig = VisibilityConfig()
     lines: LineConfig = LineConfig()
     tips: TipConfig = TipConfig()
-    template_min_visible: float = 0.98
+    template_min_visible: float = 0.25
 
     def __post_init__(self):
         from .searches import SEARCH_NAMES
 
         _check(self.method in SEARCH_NAMES, "ImageConfig.method",
                f"unknown search {self.method!r}; valid: {', '.join(SEARCH_NAMES)}")
-        _check(0 <= self.template_min_visible <= 1, "ImageConfig.template_min_visible",
-               f"must lie in [0, 1], got {self.template_min_visible!r}")
+        _check(0 < self.template_min_visible <= 1, "ImageConfig.template_min_visible",
+               f"must lie in (0, 1], got {self.template_min_visible!r}")
 
     def replace(self, **changes) -> ImageConfig:
         """A copy with some fields changed (``config.replace(method="gaussian")``)."""

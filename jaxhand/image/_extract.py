@@ -82,7 +82,7 @@ class Diagnostics:
         method: the search used.
         cameras: one :class:`CameraDiagnostics` per camera.
         state: the image state after this frame (templates filled in for links that had none and
-            were seen unoccluded); pass it to the next frame.
+            were seen well enough); pass it to the next frame.
         timings_s: wall time of each stage summed over the cameras (s): "kinematics", "samplers",
             "visibility", "sampling", "search", "lines", "tips".
     """
@@ -236,10 +236,21 @@ def _tips(grey: np.ndarray, model: Model, obs: _Observation, line_ok: np.ndarray
             np.where(valid, strength, 0.0))
 
 
-def _unoccluded(obs: _Observation, config: ImageConfig) -> np.ndarray:
-    """Links fit for a template: ok, visible enough, every profile sample inside the image."""
-    return (obs.samplers.ok & (obs.visibility.visible_share >= config.template_min_visible)
-            & obs.usable.all(axis=(1, 2)))
+def _take_templates(obs: _Observation, config: ImageConfig, values_stored: np.ndarray, mask_stored: np.ndarray,
+                    only_missing: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Store this view's profiles as templates where it shows a link well enough.
+
+    A link qualifies when it has samplers and at least ``template_min_visible`` of it is visible;
+    its samples that show the link overwrite the stored ones, the others keep theirs. With
+    ``only_missing`` only links without any template take one.
+    """
+    share = obs.visibility.visible_share
+    seen = obs.window & obs.usable
+    take = obs.samplers.ok & (share >= config.template_min_visible)
+    if only_missing:
+        take &= ~mask_stored.any(axis=(1, 2))
+    new = take[:, None, None] & seen
+    return np.where(new, obs.values, values_stored), mask_stored | new
 
 
 def _prepare(images, model: Model, cameras, q, config: ImageConfig | None, name: str):
@@ -255,12 +266,14 @@ def _prepare(images, model: Model, cameras, q, config: ImageConfig | None, name:
 
 def capture_templates(images, model: Model, cameras, q, config: ImageConfig | None = None,
                       state: ImageState | None = None) -> ImageState:
-    """Store (or refresh) the profile templates of every link seen unoccluded at pose ``q``.
+    """Store (or refresh) the profile templates of every link seen at pose ``q``.
 
-    ``q`` should overlay the hand in the images (the hand-set initial pose of the first frame, or
-    a converged estimate). A link's template is taken only when its visible share is at least
-    ``config.template_min_visible`` and all its profiles lie inside the image; other links keep
-    the templates they had in ``state``.
+    ``q`` should overlay the hand in the images: the hand-set initial pose of the first frame, and
+    then each frame's converged estimate, so the templates follow the fingers' changing look
+    (call it after every solve). A link's template is taken when at least
+    ``config.template_min_visible`` of it is visible: the samples that show the link (inside its
+    outline, off nearer fingers, inside the image) overwrite the stored ones and join the
+    template's mask; the samples hidden now keep what earlier views stored.
 
     Args:
         images: one image per camera (a single array for one camera).
@@ -281,13 +294,13 @@ def capture_templates(images, model: Model, cameras, q, config: ImageConfig | No
     layout = _layout(config)
     if state is None or not state.matches(len(rig), model.n_links, layout):
         state = ImageState.empty(len(rig), model.n_links, layout)
-    templates, valid = [], []
+    templates, masks = [], []
     for c, (grey, cam) in enumerate(zip(greys, rig)):
         obs = _observe(grey, model, cam, q, chain, config)
-        take = _unoccluded(obs, config)
-        templates.append(np.where(take[:, None, None], obs.values, state.templates[c]))
-        valid.append(take | state.template_valid[c])
-    return ImageState(templates=tuple(templates), template_valid=tuple(valid), layout=layout)
+        t, m = _take_templates(obs, config, state.templates[c], state.template_mask[c], only_missing=False)
+        templates.append(t)
+        masks.append(m)
+    return ImageState(templates=tuple(templates), template_mask=tuple(masks), layout=layout)
 
 
 def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig | None = None,
@@ -302,9 +315,11 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
         cameras: a camera or a rig.
         q_pred: (n_q,) the predicted pose that places the trackers and the windows.
         config: settings (default :class:`ImageConfig`, the WSSD search).
-        state: stored templates (for the "wssd" search). Links without a template get one from
-            this frame at ``q_pred`` when they are seen unoccluded, as the thesis's first frame
-            does with its hand-set pose; the updated state comes back in ``diagnostics.state``.
+        state: stored templates (for the "wssd" search; see :func:`capture_templates`). Links
+            without a template get one from this frame at ``q_pred`` when enough of them is seen,
+            as the thesis's first frame does with its hand-set pose; the updated state comes back
+            in ``diagnostics.state``. Templates are never refreshed here: the prediction is not
+            the pose the image shows; refresh them with :func:`capture_templates` at the solved pose.
 
     Returns:
         (features, diagnostics): one :class:`~jaxhand.features.Features` per camera (lines with
@@ -319,21 +334,20 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
     layout = _layout(config)
     if state is None or not state.matches(len(rig), model.n_links, layout):
         state = ImageState.empty(len(rig), model.n_links, layout)
-    features, diags, templates, tvalid = [], [], [], []
+    features, diags, templates, masks = [], [], [], []
     sc = config.samplers
     clock = _Clock()
     for c, (grey, cam) in enumerate(zip(greys, rig)):
         obs = _observe(grey, model, cam, q, chain, config, clock)
-        tmpl, tv = state.templates[c], state.template_valid[c]
+        tmpl, tmask = state.templates[c], state.template_mask[c]
         if config.method in TEMPLATE_SEARCHES:
-            fill = _unoccluded(obs, config) & ~tv
-            tmpl = np.where(fill[:, None, None], obs.values, tmpl)
-            tv = tv | fill
+            tmpl, tmask = _take_templates(obs, config, tmpl, tmask, only_missing=True)
         templates.append(tmpl)
-        tvalid.append(tv)
+        masks.append(tmask)
         profiles = Profiles(values=obs.values, usable=obs.usable, window=obs.window, centre=sc.centre,
                             radius=sc.samples_per_radius, spacing_px=obs.samplers.spacing_px, templates=tmpl,
-                            template_valid=tv & obs.samplers.ok)
+                            template_valid=tmask.any(axis=(1, 2)) & obs.samplers.ok,
+                            template_mask=tmask)
         clock.lap("search")  # template bookkeeping counts with the search
         edges = search(profiles, config.search)
         clock.lap("search")
@@ -350,6 +364,6 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
                                        edges=edges, edge_px=edge_px, boundary_lines=boundary, boundary_valid=bvalid,
                                        inliers=inliers, axial_lines=lines, single_edge=single, tip_samplers=ts,
                                        tip_edge_px=tip_edge, tip_strength=tip_strength))
-    new_state = ImageState(templates=tuple(templates), template_valid=tuple(tvalid), layout=layout)
+    new_state = ImageState(templates=tuple(templates), template_mask=tuple(masks), layout=layout)
     return tuple(features), Diagnostics(method=config.method, cameras=tuple(diags), state=new_state,
                                         timings_s=dict(clock.totals))

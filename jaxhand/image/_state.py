@@ -13,27 +13,35 @@ __all__ = ["ImageState"]
 class ImageState:
     """Stored profile templates, one set per camera.
 
-    A template is a link's profiles sampled where the link was seen unoccluded (thesis fig. 4.8);
-    the WSSD search matches the current profiles against it under the visibility windows.
-    Profiles are measured in units of the link's predicted radius, so a template stays valid while
-    the finger's image size changes, as long as the sampler layout (samplers per link, points per
-    profile) is the same.
+    A template is a link's profiles sampled where the link was seen (thesis fig. 4.8), with a mask
+    of the samples that showed the link (inside its own outline, off any nearer finger, inside the
+    image); the WSSD search matches the current profiles against the masked template under the
+    current visibility windows. Each capture overwrites the samples it sees and keeps the others,
+    so a template stays as complete as the link's views have been and as recent as possible.
+    Profiles are measured in units of the link's predicted radius, so a template stays usable
+    while the finger's image size changes, as long as the sampler layout (samplers per link,
+    points per profile, scope) is the same.
 
     Attributes:
         templates: per camera, (links, samplers, points) grey levels (0 where none is stored).
-        template_valid: per camera, (links,) a template is stored.
+        template_mask: per camera, (links, samplers, points) the template sample showed the link.
         layout: (samplers per link, points per profile, scope) the templates were sampled with.
     """
 
     templates: tuple[np.ndarray, ...]
-    template_valid: tuple[np.ndarray, ...]
+    template_mask: tuple[np.ndarray, ...]
     layout: tuple[int, int, float]
+
+    @property
+    def template_valid(self) -> tuple[np.ndarray, ...]:
+        """Per camera, (links,) a template is stored."""
+        return tuple(m.any(axis=(1, 2)) for m in self.template_mask)
 
     @classmethod
     def empty(cls, n_cameras: int, n_links: int, layout: tuple[int, int, float]) -> ImageState:
         m, n, _ = layout
         return cls(templates=tuple(np.zeros((n_links, m, n)) for _ in range(n_cameras)),
-                   template_valid=tuple(np.zeros(n_links, bool) for _ in range(n_cameras)), layout=layout)
+                   template_mask=tuple(np.zeros((n_links, m, n), bool) for _ in range(n_cameras)), layout=layout)
 
     def matches(self, n_cameras: int, n_links: int, layout: tuple[int, int, float]) -> bool:
         """Whether the state fits this rig, model and sampler layout."""

@@ -31,8 +31,10 @@ class Profiles:
         centre: sample index of the predicted axis, ``(points - 1) / 2``.
         radius: predicted radius in samples (the same for every link).
         spacing_px: (links,) pixels between neighbouring samples.
-        templates: (links, samplers, points) stored unoccluded profiles (thesis §4.3.1), or None.
+        templates: (links, samplers, points) stored profiles (thesis §4.3.1), or None.
         template_valid: (links,) a template is stored for the link.
+        template_mask: (links, samplers, points) the template samples that showed the link when
+            it was taken (None: all of them).
     """
 
     values: np.ndarray
@@ -43,6 +45,7 @@ class Profiles:
     spacing_px: np.ndarray
     templates: np.ndarray | None = None
     template_valid: np.ndarray | None = None
+    template_mask: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int, int]:

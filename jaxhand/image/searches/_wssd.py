@@ -1,12 +1,13 @@
 """Windowed SSD against stored templates (the thesis's proposed method, §4.3.1-4.3.2).
 
 The only search built for occlusion. Each profile is compared with the template stored for it
-from an unoccluded view, but only where the link is visible: the window function (thesis
-§4.3.3) masks the template, ``m(j) = v(j) t(j)``, and the windowed SSD is taken over the window
-only (§4.3.1). Here the template slides over the current profile, ``I(j + s)`` against ``t(j)``, and
-the sum is divided by the number of terms, because near the ends of a profile some shifts see
-fewer samples. The curves of one link side by side make a WSSD surface whose valley is a line
-(the phalanx is straight). The valley is found as in §4.3.2:
+from an earlier view, but only where the link is visible: the window function (thesis §4.3.3)
+masks the template, ``m(j) = v(j) t(j)``, and the windowed SSD is taken over the window only
+(§4.3.1); a template taken from a partly hidden view also masks its own hidden samples. Here the
+template slides over the current profile, ``I(j + s)`` against ``t(j)``, and the sum is divided by
+the number of terms, because near the ends of a profile some shifts see fewer samples. The
+curves of one link side by side make a WSSD surface whose valley is a line (the phalanx is
+straight). The valley is found as in §4.3.2:
 
 1. start every profile at displacement 0 (the prediction);
 2. step each displacement one sample against the sign of the surface's gradient there,
@@ -100,7 +101,8 @@ def _refine(W: np.ndarray, yhat: np.ndarray, curve_ok: np.ndarray, S: int, subsa
 
     Returns:
         (y, fit_ok, wmin): the line's displacement at each profile, the links fitted and each
-        profile's smallest WSSD near the line.
+        profile's smallest WSSD near the line (inf where that minimum lies on the edge of the
+        searched shifts).
     """
     L, M, K = W.shape
     x = np.arange(M, dtype=float)
@@ -119,9 +121,10 @@ def _refine(W: np.ndarray, yhat: np.ndarray, curve_ok: np.ndarray, S: int, subsa
         inner = (k > 0) & (k < K - 1) & np.isfinite(wm) & np.isfinite(wp) & np.isfinite(wmin)
         y = y + np.where(inner, parabola_vertex(np.where(inner, wm, 0.0), np.where(inner, wmin, 0.0),
                                                 np.where(inner, wp, 0.0)), 0.0)
-    use = curve_ok & np.isfinite(wmin)
+    # A minimum on the edge of the searched shifts is no valley: the phalanx lies farther away.
+    use = curve_ok & np.isfinite(wmin) & (k > 0) & (k < K - 1)
     c, ok = plls(x, y, use)
-    return c[:, 0, None] + c[:, 1, None] * x, ok, wmin
+    return c[:, 0, None] + c[:, 1, None] * x, ok, np.where(use, wmin, np.inf)
 
 
 def wssd_valley(profiles: Profiles, config: SearchConfig) -> Edges:
@@ -132,6 +135,8 @@ def wssd_valley(profiles: Profiles, config: SearchConfig) -> Edges:
     else:
         templates, tvalid = profiles.templates, profiles.template_valid
     window = profiles.window & profiles.usable
+    if profiles.template_mask is not None:
+        window = window & profiles.template_mask
     S = profiles.max_shift(config.max_shift)
     W, counts, shifts = wssd_surface(profiles.values, profiles.usable, templates, window, S)
     enough = window.sum(-1) >= config.min_window * N

@@ -1,0 +1,328 @@
+"""Feature benchmark: time per frame and line accuracy of every feature search, in one process.
+
+Frames come from :mod:`jaxhand.render` (5x5 antialiasing) for two thesis experiments at 320x240:
+
+- ``full_hand_spread_flex`` (hand21, thesis §6.2.2, 60 frames): the fingers spread, then flex;
+- ``two_finger_occlusion`` (two_fingers, thesis §6.1, 40 frames): the index crosses in front of the
+  middle finger, covering part of it.
+
+Conditions (light along the viewing direction unless named, so each phalanx is shaded symmetrically):
+
+- ``clean`` (hand21), ``noisy`` (hand21, Gaussian pixel noise of 4 grey levels),
+  ``oblique`` (hand21, the renderer's default light from above-left: one limb of each finger is
+  dark and soft), ``occluded`` (two_fingers);
+- ``clean@truth``: hand21 with the prediction at the true pose (the others predict each frame's
+  pose from the two previous true poses at constant velocity, ``2 q[k-1] - q[k-2]``, what a
+  tracker's filter does once it has converged).
+
+Every frame runs through :func:`jaxhand.image.extract_features` with each search in
+:data:`jaxhand.image.SEARCH_NAMES`. The WSSD search captures its templates from the first frame at
+the true pose and, as a tracker would after each solve, refreshes them with
+:func:`jaxhand.image.capture_templates` at each frame's true pose (the solve taken as exact), so
+it matches every frame against the latest look of each phalanx. A link's error is measured
+against its true projected axis: the angle between the lines (degrees) and the distance of the
+true link midpoint from the extracted line (px). "occl. links" restricts the ``occluded``
+condition to links whose visible share at the true pose lies in [0.3, 0.95].
+
+Time per frame is the median over the clean hand21 frames and repeats (one core; OpenCV and BLAS
+threads set to 1), with the first call (which compiles the jitted kinematics) reported separately
+and the median stage split from :attr:`Diagnostics.timings_s`. The peer: sampling every profile
+with one ``cv2.remap`` per profile (a Python loop) instead of one call for the frame.
+
+Run ``python benchmarks/features.py`` (writes ``benchmarks/results/features.json``) or
+``python benchmarks/features.py --quick`` for a smoke run (no JSON unless ``--out`` is given).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # one core, before numpy loads
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import importlib.metadata  # noqa: E402
+import json  # noqa: E402
+import platform  # noqa: E402
+import statistics  # noqa: E402
+import subprocess  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import cv2  # noqa: E402
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+import shapely  # noqa: E402
+
+import jaxhand as jh  # noqa: E402
+from jaxhand.image import (  # noqa: E402
+    SEARCH_NAMES,
+    ImageConfig,
+    as_grey,
+    capture_templates,
+    extract_features,
+    sample_profiles,
+)
+from jaxhand.image._sampling import INTERPOLATION_FLAGS  # noqa: E402
+from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+DEFAULT_OUT = REPO / "benchmarks" / "results" / "features.json"
+FRONT_LIGHT = (0.0, 0.0, -1.0)
+OBLIQUE_LIGHT = RenderConfig().light_dir
+NOISE_SIGMA = 4.0
+# (condition, preset, light, noise, predict at constant velocity from the previous frames' truth)
+CONDITIONS = (
+    ("clean", "full_hand_spread_flex", FRONT_LIGHT, 0.0, True),
+    ("clean@truth", "full_hand_spread_flex", FRONT_LIGHT, 0.0, False),
+    ("noisy", "full_hand_spread_flex", FRONT_LIGHT, NOISE_SIGMA, True),
+    ("oblique", "full_hand_spread_flex", OBLIQUE_LIGHT, 0.0, True),
+    ("occluded", "two_finger_occlusion", FRONT_LIGHT, 0.0, True),
+)
+OCCLUDED_SHARE = (0.3, 0.95)
+
+
+def _git(*args) -> str | None:
+    try:
+        out = subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True, timeout=10, check=True)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip()
+
+
+def _cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def environment() -> dict:
+    dirty = _git("status", "--porcelain", "--untracked-files=no", "--", "jaxhand/image", "benchmarks/features.py")
+    return {
+        "cpu": _cpu_name(), "cpu_count": os.cpu_count(), "threads": 1, "load_average_1min": os.getloadavg()[0],
+        "platform": f"{platform.system()} {platform.machine()}", "python": platform.python_version(),
+        "numpy": np.__version__, "opencv": cv2.__version__, "shapely": shapely.__version__, "jax": jax.__version__,
+        "jaxlib": importlib.metadata.version("jaxlib"), "jaxhand": jh.__version__,
+        "commit": _git("rev-parse", "--short=12", "HEAD"), "dirty": None if dirty is None else bool(dirty),
+    }
+
+
+def line_errors(model, camera, q, lines) -> tuple[np.ndarray, np.ndarray]:
+    """Angle (deg) and midpoint offset (px) of each extracted line from the true projected link axis."""
+    v = jh.project_pose(model, camera, jnp.asarray(q))
+    s, e = np.asarray(v.link_start_px), np.asarray(v.link_end_px)
+    u = (e - s) / np.maximum(np.linalg.norm(e - s, axis=-1, keepdims=True), 1e-12)
+    ang = np.degrees(np.arcsin(np.clip(np.abs(np.sum(lines[:, :2] * u, -1)), 0, 1)))
+    off = np.abs(np.sum(lines[:, :2] * (s + e) / 2, -1) - lines[:, 2])
+    return ang, off
+
+
+def _frames(preset: str, light, noise: float, quick: bool):
+    seq = make_preset(preset, size=(320, 240))
+    idx = np.arange(seq.n_frames)
+    if quick:
+        idx = idx[:: max(1, seq.n_frames // 6)]
+    cam = seq.cameras[0]
+    cfg = RenderConfig(antialias=5, light_dir=light, noise_sigma=noise, seed=7)
+    images = [render_frame(seq.model, cam, seq.q[k], cfg, frame_index=int(k)).image for k in idx]
+    return seq, cam, idx, images
+
+
+def _visible_share(model, cam, q, image) -> np.ndarray:
+    _, diag = extract_features(image, model, cam, q, ImageConfig(method="gaussian"))
+    return diag.cameras[0].visibility.visible_share
+
+
+def evaluate(quick: bool) -> list[dict]:
+    rows = []
+    for cond, preset, light, noise, previous in CONDITIONS:
+        seq, cam, idx, images = _frames(preset, light, noise, quick)
+        m = seq.model
+        truth_share = [_visible_share(m, cam, seq.q[k], im) for k, im in zip(idx, images)]
+        for method in SEARCH_NAMES:
+            config = ImageConfig(method=method)
+            state = capture_templates(images[0], m, cam, seq.q[idx[0]], config)
+            ang, off, valid, occl, tip_err, tip_valid = [], [], [], [], [], []
+            for j, k in enumerate(idx):
+                q_pred = 2 * seq.q[max(k - 1, 0)] - seq.q[max(k - 2, 0)] if previous else seq.q[k]
+                feats, diag = extract_features(images[j], m, cam, q_pred, config, state)
+                # a tracker refreshes the templates at its solved pose; here the solve is taken as exact
+                state = capture_templates(images[j], m, cam, seq.q[k], config, diag.state)
+                f = feats[0]
+                a, o = line_errors(m, cam, seq.q[k], np.asarray(f.lines))
+                ang.append(a)
+                off.append(o)
+                valid.append(np.asarray(f.line_valid))
+                sh = truth_share[j]
+                occl.append((sh >= OCCLUDED_SHARE[0]) & (sh <= OCCLUDED_SHARE[1]))
+                t_true = np.asarray(jh.project_pose(m, cam, jnp.asarray(seq.q[k])).tips_px)
+                tip_err.append(np.linalg.norm(np.asarray(f.tips) - t_true, axis=-1))
+                tip_valid.append(np.asarray(f.tip_valid))
+            ang, off, valid, occl = (np.concatenate(x) for x in (ang, off, valid, occl))
+            tip_err, tip_valid = np.concatenate(tip_err), np.concatenate(tip_valid)
+            subsets = [(cond, np.ones_like(valid))]
+            if cond == "occluded":
+                subsets.append(("occl. links", occl))
+            for name, sel in subsets:
+                rows.append(_summary(method, name, preset, ang, off, valid, sel, tip_err, tip_valid))
+                print(_format_row(rows[-1]), flush=True)
+    return rows
+
+
+def _summary(method, condition, preset, ang, off, valid, sel, tip_err, tip_valid) -> dict:
+    use = valid & sel
+    a, o = ang[use], off[use]
+    good = (a < 1.0) & (o < 1.0)
+
+    def stat(x, fn):
+        return float(fn(x)) if len(x) else None
+
+    return {"method": method, "condition": condition, "preset": preset, "links": int(sel.sum()),
+            "valid_share": float(use.sum() / max(sel.sum(), 1)),
+            "angle_median_deg": stat(a, np.median), "angle_p95_deg": stat(a, lambda x: np.percentile(x, 95)),
+            "offset_median_px": stat(o, np.median), "offset_p95_px": stat(o, lambda x: np.percentile(x, 95)),
+            "within_1deg_1px_share": float(good.sum() / max(sel.sum(), 1)),
+            "tip_valid_share": float(tip_valid.mean()) if len(tip_valid) else None,
+            "tip_median_px": stat(tip_err[tip_valid], np.median)}
+
+
+def _loop_sampling(grey, points, interpolation):
+    """Peer: one ``cv2.remap`` per profile (the Python loop the front end avoids)."""
+    flat = points.reshape(-1, points.shape[-2], 2).astype(np.float32)
+    return [cv2.remap(grey, p[None, :, 0], p[None, :, 1], INTERPOLATION_FLAGS[interpolation],
+                      borderMode=cv2.BORDER_REPLICATE) for p in flat]
+
+
+def _median_ms(fn, repeats: int) -> float:
+    samples = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        samples.append(time.perf_counter() - t0)
+    return 1e3 * statistics.median(samples)
+
+
+def timing(quick: bool) -> tuple[list[dict], dict]:
+    seq = make_preset("full_hand_spread_flex", size=(320, 240))
+    m, cam = seq.model, seq.cameras[0]
+    idx = np.linspace(0, seq.n_frames - 1, 4 if quick else 12).round().astype(int)
+    cfg = RenderConfig(antialias=5, light_dir=FRONT_LIGHT)
+    images = [render_frame(m, cam, seq.q[k], cfg).image for k in idx]
+    repeats = 2 if quick else 5
+    rows = []
+    for method in SEARCH_NAMES:
+        config = ImageConfig(method=method)
+        state = capture_templates(images[0], m, cam, seq.q[idx[0]], config)
+        t0 = time.perf_counter()
+        extract_features(images[0], m, cam, seq.q[idx[0]], config, state)
+        first = 1e3 * (time.perf_counter() - t0)
+        samples, stages = [], {}
+        for _ in range(repeats):
+            for j, k in enumerate(idx):
+                t0 = time.perf_counter()
+                _, diag = extract_features(images[j], m, cam, seq.q[k], config, state)
+                samples.append(time.perf_counter() - t0)
+                for name, s in diag.timings_s.items():
+                    stages.setdefault(name, []).append(s)
+        rows.append({"method": method, "median_ms": 1e3 * statistics.median(samples), "first_call_ms": first,
+                     "stages_median_ms": {k: 1e3 * statistics.median(v) for k, v in stages.items()}})
+    best = min(r["median_ms"] for r in rows)
+    for r in rows:
+        r["over_fastest"] = r["median_ms"] / best
+    # peer: profile sampling, one remap per frame vs one per profile
+    _, diag = extract_features(images[0], m, cam, seq.q[idx[0]], ImageConfig(method="gaussian"))
+    pts = diag.cameras[0].samplers.points
+    grey = as_grey(images[0])
+    interp = ImageConfig().samplers.interpolation
+    ours = _median_ms(lambda: sample_profiles(grey, pts, interp), 20 if quick else 200)
+    loop = _median_ms(lambda: _loop_sampling(grey, np.nan_to_num(pts, nan=-10.0), interp), 5 if quick else 50)
+    peer = {"profiles": int(np.prod(pts.shape[:2])), "points": int(pts.shape[2]), "one_remap_ms": ours,
+            "remap_per_profile_ms": loop, "per_profile_over_one": loop / ours}
+    return rows, peer
+
+
+HEADER = (f"{'method':18s} {'condition':12s} {'links':>5s} {'valid':>6s} {'ang med':>8s} {'ang p95':>8s} "
+          f"{'off med':>8s} {'off p95':>8s} {'<=1/1':>6s} {'tips':>5s} {'tip med':>8s}")
+
+
+def _f(x, fmt):
+    return format(x, fmt) if x is not None else format("-", ">" + fmt.split(".")[0].lstrip(">") or "8")
+
+
+def _format_row(r: dict) -> str:
+    return (f"{r['method']:18s} {r['condition']:12s} {r['links']:5d} {100 * r['valid_share']:5.1f}% "
+            f"{_f(r['angle_median_deg'], '8.3f')} {_f(r['angle_p95_deg'], '8.3f')} "
+            f"{_f(r['offset_median_px'], '8.3f')} {_f(r['offset_p95_px'], '8.3f')} "
+            f"{100 * r['within_1deg_1px_share']:5.1f}% {100 * (r['tip_valid_share'] or 0):4.0f}% "
+            f"{_f(r['tip_median_px'], '8.2f')}")
+
+
+def print_tables(accuracy: list[dict], times: list[dict], peer: dict) -> None:
+    print("\nper method (angle deg, offset px; '<=1/1': share of link slots valid and within 1 deg and 1 px)")
+    for method in SEARCH_NAMES:
+        t = next(r for r in times if r["method"] == method)
+        print(f"\n{method}: {t['median_ms']:.2f} ms/frame (hand21 320x240; x{t['over_fastest']:.2f} of the fastest, "
+              f"first call {t['first_call_ms']:.0f} ms)")
+        print("  " + HEADER)
+        for r in accuracy:
+            if r["method"] == method:
+                print("  " + _format_row(r))
+    stages = sorted({k for r in times for k in r["stages_median_ms"]})
+    print("\ntime per frame, hand21 320x240 (median ms; stages from Diagnostics.timings_s)")
+    print(f"{'method':18s} {'total':>7s} {'x best':>6s} " + " ".join(f"{s:>10s}" for s in stages))
+    for r in times:
+        print(f"{r['method']:18s} {r['median_ms']:7.2f} {r['over_fastest']:6.2f} "
+              + " ".join(f"{r['stages_median_ms'].get(s, 0.0):10.2f}" for s in stages))
+    print(f"\nprofile sampling, {peer['profiles']} profiles x {peer['points']} points: one cv2.remap "
+          f"{peer['one_remap_ms']:.3f} ms, one per profile {peer['remap_per_profile_ms']:.3f} ms "
+          f"(x{peer['per_profile_over_one']:.1f})")
+
+
+def _metrics(accuracy: list[dict], times: list[dict], peer: dict) -> dict:
+    out = {}
+    for r in times:
+        out[f"features.hand21.320x240.{r['method']}.median_ms"] = r["median_ms"]
+    for r in accuracy:
+        cond = r["condition"].replace(". ", "_").replace("@", "_at_")
+        for key in ("valid_share", "angle_median_deg", "angle_p95_deg", "offset_median_px", "offset_p95_px",
+                    "within_1deg_1px_share", "tip_median_px"):
+            out[f"features.{cond}.{r['method']}.{key}"] = r[key]
+    out["features.sampling.one_remap_ms"] = peer["one_remap_ms"]
+    out["features.sampling.remap_per_profile_ms"] = peer["remap_per_profile_ms"]
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="a few frames per sequence; no JSON unless --out")
+    parser.add_argument("--out", type=Path, default=None, help=f"JSON path (default {DEFAULT_OUT.relative_to(REPO)})")
+    args = parser.parse_args(argv)
+    cv2.setNumThreads(1)
+    env = environment()
+    print(f"feature benchmark: {env['cpu']} ({env['cpu_count']} cores, load {env['load_average_1min']:.1f}), "
+          f"1 thread, opencv {env['opencv']}, shapely {env['shapely']}, "
+          f"commit {env['commit']}{' (dirty)' if env['dirty'] else ''}")
+    print(HEADER)
+    accuracy = evaluate(args.quick)
+    times, peer = timing(args.quick)
+    print_tables(accuracy, times, peer)
+    data = {"benchmark": "features", "environment": env, "quick": args.quick,
+            "config": {"image": repr(ImageConfig()), "render": {"antialias": 5, "size": "320x240"},
+                       "noise_sigma": NOISE_SIGMA, "occluded_share": list(OCCLUDED_SHARE)},
+            "accuracy": accuracy, "timing": times, "sampling_peer": peer,
+            "metrics": _metrics(accuracy, times, peer)}
+    out = args.out if args.out is not None else (None if args.quick else DEFAULT_OUT)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(data, indent=2) + "\n")
+        print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
