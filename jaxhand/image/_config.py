@@ -32,7 +32,8 @@ class SamplerConfig:
         per_link: samplers (profiles) per link, spread evenly along the projected link.
         along: first and last sampler position as fractions of the projected link (0 = start,
             1 = end); staying off the joints keeps profiles away from the neighbouring phalanx.
-        points: samples per profile (the thesis uses 20; more gives finer edges).
+        points: samples per profile (the thesis uses 20); 48 puts samples about 1 px apart on a
+            phalanx 13 px in radius, and sub-sample edges need the profile no coarser than that.
         scope: half length of a profile in units of the predicted radius ``r``; the profile spans
             ``±scope · r`` about the predicted axis, so it reaches past both predicted boundaries.
         interpolation: "nearest", "bilinear" or "bicubic" (OpenCV's remap kernels, thesis §4.2).
@@ -114,7 +115,7 @@ class SearchConfig:
     crest_floor: float = 0.5
     crest_halfwidth: float = 0.25
     max_iter: int = 20
-    min_window: float = 0.25
+    min_window: float = 0.15
     max_mismatch: float = 0.5
 
     def __post_init__(self):
@@ -150,8 +151,10 @@ class VisibilityConfig:
             convex hull and simplification).
         simplify_px: tolerance of the polygon simplification (Douglas-Peucker), px.
         window_pad: a link's own polygon is grown by this much (in ``r``) before the occluders are
-            cut out, so a window keeps a strip of background on each side and the template match
-            sees both boundaries.
+            cut out, so a window would keep a strip of background on each side. The default 0 is
+            the thesis's window (the truncated polygon itself): the background beside a finger
+            changes whenever another finger comes close, and a strip of it in the window then
+            spoils the template match.
         occluder_margin_px: occluding polygons are grown by this much (px) before subtraction, so
             the occluder's own boundary stays out of the occluded link's window.
     """
