@@ -17,6 +17,7 @@ from ._fit import SOLVERS, fit, fit_batch, solver_named
 from ._parts import StateSpace
 from ._result import FitResult
 from ._status import STATUS_NAMES, Status, status_name
+from ._synthetic import features_from_poses
 
 __all__ = ["fit", "fit_batch", "FitConfig", "FitResult", "Status", "STATUS_NAMES", "status_name", "SOLVERS",
-           "solver_named", "solve_least_squares", "StateSpace"]
+           "solver_named", "solve_least_squares", "StateSpace", "features_from_poses"]

@@ -21,45 +21,61 @@ from ._parts import GaussNewtonFamily, StateSpace
 from ._result import FitResult
 from .bounded_trust_region import make_bounded_trust_region
 from .constant_damping import make_constant_damping
-from .gauss_newton import make_gauss_newton
+from .gauss_newton import gauss_newton_config
 from .levenberg_marquardt import make_levenberg_marquardt
 from .step_limited import make_step_limited
 
 __all__ = ["SOLVERS", "fit", "fit_batch", "solver_named"]
 
-#: Solver names accepted by :func:`fit`, with their builders.
-_BUILDERS: dict[str, Callable[[FitConfig, StateSpace], GaussNewtonFamily]] = {
-    "gn": make_gauss_newton,            # thesis eq. 3.4
-    "gn_eta": make_step_limited,        # thesis §3.2.4, fixed or adaptive eta
-    "lm_fixed": make_constant_damping,  # DigitEyes eq. 5, constant mu I
-    "lm": make_levenberg_marquardt,     # optimistix LevenbergMarquardt, adaptive damping
-    "bounded": make_bounded_trust_region,  # Coleman-Li scaled trust region inside the limits
+_Builder = Callable[[FitConfig, StateSpace], GaussNewtonFamily]
+
+
+def _unchanged(config: FitConfig) -> FitConfig:
+    return config
+
+
+#: Solver names accepted by :func:`fit`: the builder of the compiled program and the config it
+#: runs with. ``gn`` is ``gn_eta`` with eta = 1 and no cap, so the two share one program.
+_SOLVERS: dict[str, tuple[_Builder, Callable[[FitConfig], FitConfig]]] = {
+    "gn": (make_step_limited, gauss_newton_config),       # thesis eq. 3.4
+    "gn_eta": (make_step_limited, _unchanged),            # thesis §3.2.4, fixed or adaptive eta
+    "lm_fixed": (make_constant_damping, _unchanged),      # DigitEyes eq. 5, constant mu I
+    "lm": (make_levenberg_marquardt, _unchanged),         # optimistix LevenbergMarquardt
+    "bounded": (make_bounded_trust_region, _unchanged),   # Coleman-Li trust region inside the limits
 }
-SOLVERS: tuple[str, ...] = tuple(_BUILDERS)
+SOLVERS: tuple[str, ...] = tuple(_SOLVERS)
 
 
 def solver_named(name: str) -> str:
     """Check a solver name; the error lists the valid ones."""
-    if not isinstance(name, str) or name not in _BUILDERS:
+    if not isinstance(name, str) or name not in _SOLVERS:
         raise InputError(f"unknown solver {name!r}; valid solvers: {', '.join(SOLVERS)}")
     return name
 
 
-def _fit_core(model: Model, rig: tuple, feats: tuple, q0, solver: str, config: FitConfig) -> FitResult:
+def _fit_core(model: Model, rig: tuple, feats: tuple, q0, build: _Builder, config: FitConfig) -> FitResult:
     space = StateSpace.of(model)
     q0 = space.normalize(q0)
-    if solver == "bounded":
+    if build is make_bounded_trust_region:   # every iterate inside the limits, the start included
         q0 = space.interior(q0)
     args = ResidualArgs(model=model, cameras=rig, features=feats, fractions=config.link_fractions)
-    return solve_least_squares(residuals, _BUILDERS[solver](config, space), q0, args, space, config)
+    return solve_least_squares(residuals, build(config, space), q0, args, space, config)
+
+
+_DEFAULT_CONFIG = FitConfig()
+
+
+def _program(solver: str, config: FitConfig | None) -> tuple[_Builder, FitConfig]:
+    build, configure = _SOLVERS[solver_named(solver)]
+    return build, configure(_DEFAULT_CONFIG if config is None else check_config(config))
 
 
 _fit_jit = eqx.filter_jit(_fit_core)
 
 
 @eqx.filter_jit
-def _fit_batch_jit(model, rig, feats, q0s, solver, config):
-    return jax.vmap(lambda f, q: _fit_core(model, rig, f, q, solver, config))(feats, q0s)
+def _fit_batch_jit(model, rig, feats, q0s, build, config):
+    return jax.vmap(lambda f, q: _fit_core(model, rig, f, q, build, config))(feats, q0s)
 
 
 def fit(model: Model, cameras, features, q0, *, solver: str = "lm", config: FitConfig | None = None) -> FitResult:
@@ -83,12 +99,11 @@ def fit(model: Model, cameras, features, q0, *, solver: str = "lm", config: FitC
     Raises:
         InputError: wrong shapes, non-finite q0 or features, bad config values, unknown solver.
     """
-    solver = solver_named(solver)
-    config = check_config(FitConfig() if config is None else config)
+    build, config = _program(solver, config)
     rig = as_rig(cameras)
     feats = validate_features(model, rig, features)
     q0 = validate_q(model, q0, name="q0")
-    return _fit_jit(model, rig, _as_arrays(feats), jnp.asarray(q0), solver, config)
+    return _fit_jit(model, rig, _as_arrays(feats), jnp.asarray(q0), build, config)
 
 
 def fit_batch(model: Model, cameras, features, q0, *, solver: str = "lm",
@@ -102,21 +117,24 @@ def fit_batch(model: Model, cameras, features, q0, *, solver: str = "lm",
     Returns:
         A :class:`FitResult` whose fields have the leading axis B.
     """
-    solver = solver_named(solver)
-    config = check_config(FitConfig() if config is None else config)
+    build, config = _program(solver, config)
     rig = as_rig(cameras)
     feats = _validate_batch_features(model, rig, features)
     B = int(np.asarray(feats[0].lines).shape[0])
     q0s = _validate_batch_q(model, q0, B)
-    return _fit_batch_jit(model, rig, _as_arrays(feats), jnp.asarray(q0s), solver, config)
+    return _fit_batch_jit(model, rig, _as_arrays(feats), jnp.asarray(q0s), build, config)
 
 
 def _as_arrays(feats: tuple[Features, ...]) -> tuple[Features, ...]:
     """Features with every field a JAX array of the working precision (bools stay bools), so a
     NumPy or float32 input does not trigger a new compilation."""
+    dtype = jnp.asarray(0.0).dtype   # float64 (jaxhand enables x64)
+
     def conv(x):
+        if isinstance(x, jax.Array) and x.dtype in (dtype, jnp.bool_):
+            return x
         a = np.asarray(x)
-        return jnp.asarray(a, dtype=bool if a.dtype == bool else float)
+        return jnp.asarray(a, dtype=bool if a.dtype == bool else dtype)
 
     return tuple(jax.tree_util.tree_map(conv, f) for f in feats)
 

@@ -13,7 +13,9 @@ from collections.abc import Callable
 from typing import Any
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import lineax as lx
 import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Bool, Float, PyTree, Scalar
@@ -104,35 +106,51 @@ class GaussNewtonFamily(optx.AbstractGaussNewton):
         self.verbose = _quiet
 
 
-class _WrappedState(eqx.Module):
+class _RetractedState(eqx.Module):
     y: Array
+    J: Array
     inner: Any
 
 
 class Retracted(optx.AbstractDescent):
-    """Wrap a descent so that every step lands back on the state space.
+    """Wrap a descent so that every step lands back on the state space, with J built once.
 
-    The inner descent proposes ``dq``; this returns ``retract(q + dq) - q``, where ``retract``
-    renormalises the free base's quaternion and, with ``clip``, clips into the joint limits.
-    The search then judges the step actually taken.
+    ``query`` materialises the Jacobian once per accepted point (the inner descent then gets a
+    matrix operator, so its linear solve does not rebuild it, and the driver reads J from
+    here for its rank test); ``step`` takes the inner descent's ``dq`` and returns
+    ``retract(q + dq) - q``, where ``retract`` renormalises the free base's quaternion and, with
+    ``clip``, clips into the joint limits. The search then judges the step actually taken.
     """
 
     inner: optx.AbstractDescent
     space: StateSpace
     clip: bool = eqx.field(static=True, default=False)
 
-    def init(self, y, f_info_struct) -> _WrappedState:
-        return _WrappedState(y, self.inner.init(y, f_info_struct))
+    def init(self, y, f_info_struct) -> _RetractedState:
+        m = f_info_struct.residual.shape[0]
+        J = jnp.zeros((m, y.shape[0]), y.dtype)
+        return _RetractedState(y, J, self.inner.init(y, _as_matrix_struct(f_info_struct)))
 
-    def query(self, y, f_info, state: _WrappedState) -> _WrappedState:
-        return _WrappedState(y, self.inner.query(y, f_info, state.inner))
+    def query(self, y, f_info, state: _RetractedState) -> _RetractedState:
+        J = f_info.jac.as_matrix()
+        f_info = optx.FunctionInfo.ResidualJac(f_info.residual, lx.MatrixLinearOperator(J))
+        return _RetractedState(y, J, self.inner.query(y, f_info, state.inner))
 
-    def step(self, step_size: Scalar, state: _WrappedState):
+    def step(self, step_size: Scalar, state: _RetractedState):
         diff, result = self.inner.step(step_size, state.inner)
         y_new = state.y + diff
         if self.clip:
             y_new = self.space.clip(y_new)
         return self.space.normalize(y_new) - state.y, result
+
+
+def _as_matrix_struct(f_info_struct):
+    """A zero ResidualJac shaped like ``f_info_struct`` with a matrix Jacobian (for inner ``init``,
+    which only reads shapes)."""
+    r = f_info_struct.residual
+    n = jax.tree_util.tree_leaves(f_info_struct.jac.in_structure())[0].shape[0]
+    return optx.FunctionInfo.ResidualJac(jnp.zeros(r.shape, r.dtype),
+                                         lx.MatrixLinearOperator(jnp.zeros((r.shape[0], n), r.dtype)))
 
 
 class StepCapped(optx.AbstractDescent):

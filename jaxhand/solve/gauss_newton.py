@@ -14,22 +14,27 @@ Stopping rules (shared, see ``jaxhand.solve._stopping``): ``sum |q_{k+1} - q_k| 
 ``|H_k - H_{k+1}| <= ftol H_k``, or ``max_steps`` updates (``max_steps=1`` is the thesis's
 fast mode of one update per frame).
 
-Optimistix parts: ``NewtonDescent`` (SVD linear solver) and ``LearningRate(1)``.
+As the thesis notes (§3.2.4), eq. 3.4 is the step-limited update with eta = 1 and no cap, so
+this solver *is* :mod:`.step_limited` with that configuration, and shares its compiled
+program (optimistix parts: ``NewtonDescent`` with the SVD solver, ``LearningRate(1)``).
 """
 
 from __future__ import annotations
 
-import lineax as lx
-import optimistix as optx
+import math
+
+import equinox as eqx
+import jax.numpy as jnp
 
 from ._config import FitConfig
-from ._parts import GaussNewtonFamily, Retracted, StateSpace
 
-__all__ = ["make_gauss_newton"]
+__all__ = ["gauss_newton_config"]
 
 
-def make_gauss_newton(config: FitConfig, space: StateSpace) -> GaussNewtonFamily:
-    """The thesis's Gauss-Newton solver (eq. 3.4) for the state space ``space``."""
-    del config
-    descent = Retracted(optx.NewtonDescent(linear_solver=lx.SVD()), space)
-    return GaussNewtonFamily(descent, optx.LearningRate(1.0))
+_ONE = jnp.asarray(1.0)
+_INF = jnp.asarray(math.inf)
+
+
+def gauss_newton_config(config: FitConfig) -> FitConfig:
+    """``config`` with eta = 1 and no step caps: the step-limited solver becomes eq. 3.4."""
+    return eqx.tree_at(lambda c: (c.eta, c.max_step_rad, c.max_step_mm), config, (_ONE, _INF, _INF))
