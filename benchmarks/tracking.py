@@ -29,7 +29,7 @@ import numpy as np
 from jaxhand.cli_track import image_extractor
 from jaxhand.features import features_from_pose
 from jaxhand.image import ImageConfig
-from jaxhand.render import make_preset, render_frame
+from jaxhand.render import RenderConfig, make_preset, render_frame
 from jaxhand.run import accuracy_summary
 from jaxhand.track import TrackConfig, Tracker
 from jaxhand.viz import plot_joint_angles
@@ -101,6 +101,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="12 frames per sequence, no JSON")
     parser.add_argument("--only", help="run one sequence")
+    parser.add_argument("--method", help="front-end method for every sequence (default: each experiment's own)")
+    parser.add_argument("--solver", help="solver for every sequence (default: each experiment's own)")
     parser.add_argument("--frames", type=int, help="frames per sequence (default: each experiment's own)")
     args = parser.parse_args(argv)
     rows, out = [], {"environment": environment(), "sequences": {}}
@@ -109,8 +111,9 @@ def main(argv=None) -> int:
         if args.only and name != args.only:
             continue
         seq = make_preset(name, frames=12 if args.quick else (args.frames or frames))
+        method, solver = args.method or method, args.solver or solver
         t0 = time.perf_counter()
-        images = [[render_frame(seq.model, c, q).image for c in seq.cameras] for q in seq.q]
+        images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras] for q in seq.q]
         render_s = time.perf_counter() - t0
         config = TrackConfig(solver=solver, max_steps=steps, theta=0.85)
         entry = {"method": method, "solver": solver, "steps": steps, "theta": 0.85, "render_s": render_s}

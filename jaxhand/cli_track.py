@@ -140,12 +140,12 @@ def print_summary(summary: dict, out: Path, file=None) -> None:
 
 def run_demo(out: str | Path, preset: str = "two_finger_occlusion", frames: int = 40) -> dict:
     """Render ``preset``, track it with the thesis's proposed method and write the report."""
-    from .render import make_preset, write_sequence
+    from .render import RenderConfig, make_preset, write_sequence
 
     out = Path(out)
     seq = make_preset(preset, frames=frames)
     t0 = time.perf_counter()
-    write_sequence(seq, out / "sequence", overwrite=True, progress=False)
+    write_sequence(seq, out / "sequence", RenderConfig(antialias=3), overwrite=True, progress=False)
     print(f"rendered {frames} frames of {preset!r} in {time.perf_counter() - t0:.1f} s -> {out / 'sequence'}")
     from .cli import build_parser
 

@@ -32,7 +32,7 @@ from ._errors import InputError
 from .camera import as_rig
 from .features import Features
 from .filter import GHKState, ghk_init, ghk_predict, ghk_update
-from .kinematics import clip_q, validate_q
+from .kinematics import _pose, clip_q, link_points, validate_q
 from .model import Model
 
 __all__ = ["TrackConfig", "TrackState", "StepReport", "Tracker", "confidence_of"]
@@ -50,6 +50,11 @@ class TrackConfig:
         rms_scale_px: residual RMS (px) at which the confidence halves.
         min_valid_share: below this share of valid features the frame counts as lost.
         max_rms_px: above this residual RMS (px) the frame counts as lost.
+        robust_passes: re-solves after reweighting every feature by its residual at the last
+            solution (iteratively reweighted least squares with Cauchy weights
+            ``w / (1 + (e / robust_scale_px)^2)``), so a few wrong image features cannot pull the
+            pose away. 0 solves once, as the thesis does.
+        robust_scale_px: the Cauchy scale (px): a feature this far from the model halves its weight.
     """
 
     solver: str = "lm"
@@ -59,12 +64,17 @@ class TrackConfig:
     rms_scale_px: float = 2.0
     min_valid_share: float = 0.3
     max_rms_px: float = 6.0
+    robust_passes: int = 2
+    robust_scale_px: float = 2.0
 
     def __post_init__(self):
         if not 0.0 <= self.theta <= 1.0:
             raise InputError(f"theta must lie in [0, 1], got {self.theta}")
         if self.max_steps < 1:
             raise InputError(f"max_steps must be >= 1, got {self.max_steps}")
+        if self.robust_passes < 0 or self.robust_scale_px <= 0:
+            raise InputError(f"robust_passes must be >= 0 and robust_scale_px > 0, got {self.robust_passes}, "
+                             f"{self.robust_scale_px}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -120,6 +130,33 @@ def _filter_step(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: b
     return filtered, GHKState(x=clip_q(model, nxt.x), v=nxt.v, a=nxt.a)
 
 
+@eqx.filter_jit
+def feature_errors(model: Model, cameras: tuple, features: tuple, q, fractions) -> tuple:
+    """Per camera, each link line's largest distance (px) to the model's link points and each tip's
+    distance (px) to the model's tip at state q (0 where a feature is invalid)."""
+    pose = _pose(model, q)
+    out = []
+    for cam, f in zip(cameras, features):
+        tips_px, _ = cam.project(pose.tips)
+        e_tip = jnp.linalg.norm(jnp.where(f.tip_valid[:, None], tips_px - jnp.where(f.tip_valid[:, None], f.tips, 0.0),
+                                          0.0), axis=-1)
+        pts, _ = cam.project(link_points(pose, fractions))
+        lines = jnp.where(f.line_valid[:, None], f.lines, 0.0)
+        e_link = jnp.max(jnp.abs(jnp.sum(lines[:, None, :2] * pts, -1) - lines[:, None, 2]), axis=-1)
+        out.append((e_link, e_tip))
+    return tuple(out)
+
+
+def reweight(features: tuple, errors: tuple, scale_px: float) -> tuple:
+    """Features with Cauchy weights ``w / (1 + (e / scale)^2)`` from their residual errors."""
+    out = []
+    for f, (e_link, e_tip) in zip(features, errors):
+        out.append(eqx.tree_at(lambda g: (g.line_weight, g.tip_weight), f,
+                               (f.line_weight / (1.0 + (e_link / scale_px) ** 2),
+                                f.tip_weight / (1.0 + (e_tip / scale_px) ** 2))))
+    return tuple(out)
+
+
 def _valid_share(features: Sequence[Features]) -> float:
     valid = sum(int(np.sum(f.line_valid)) + int(np.sum(f.tip_valid)) for f in features)
     total = sum(f.line_valid.shape[-1] + f.tip_valid.shape[-1] for f in features)
@@ -167,6 +204,13 @@ class Tracker:
         t1 = time.perf_counter()
         result = self._fit(self.model, self.cameras, features, q_pred, solver=self.config.solver,
                            config=self._fit_config)
+        weighted = features
+        for _ in range(self.config.robust_passes):
+            errors = feature_errors(self.model, self.cameras, tuple(features), result.q,
+                                    self._fit_config.link_fractions)
+            weighted = reweight(tuple(features), errors, self.config.robust_scale_px)
+            result = self._fit(self.model, self.cameras, weighted, result.q, solver=self.config.solver,
+                               config=self._fit_config)
         q_solved = np.asarray(result.q)
         cost = float(result.cost)
         t2 = time.perf_counter()

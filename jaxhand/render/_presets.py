@@ -214,15 +214,16 @@ _TILT_45 = _rot_x(45.0)
 
 def _two_finger_occlusion(frames: int, size) -> Sequence:
     m = builtin_model("two_fingers")
-    # The tilt shows the index (nearer the camera) slightly below the middle finger. Flexing the
-    # index 10-20 degrees less than the middle finger lifts it across the middle finger, so the
-    # covered part of the middle finger grows, shrinks and moves along it; it is never covered whole.
+    # The tilt shows the index (nearer the camera) slightly below the middle finger. The sequence
+    # starts and ends with the two fingers apart (index straight, middle flexed), so both are seen
+    # unoccluded where the tracker captures its templates; in between the index flexes across the
+    # middle finger, whose covered part grows, shrinks and moves along it, never covering it whole.
     keys = [
-        _key(m, **_finger("middle", -5, -10, -5), **_finger("index", 0, -5, 0)),
+        _key(m, **_finger("middle", -35, -40, -30), **_finger("index", 10, -5, 0)),
         _key(m, **_finger("middle", -40, -45, -30), **_finger("index", -20, -30, -20)),
         _key(m, **_finger("middle", -60, -60, -40), **_finger("index", -50, -45, -30)),
         _key(m, **_finger("middle", -25, -35, -25), **_finger("index", -5, -20, -15)),
-        _key(m, **_finger("middle", -10, -15, -10), **_finger("index", -15, -15, -10)),
+        _key(m, **_finger("middle", -40, -40, -30), **_finger("index", 5, -10, -5)),
     ]
     times, key_times = _times(frames, 0.04, [0.0, 0.25, 0.5, 0.75, 1.0])
     q = joint_trajectory(m, keys, key_times, times)
