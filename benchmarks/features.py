@@ -214,23 +214,26 @@ def timing(quick: bool) -> tuple[list[dict], dict]:
     cfg = RenderConfig(antialias=5, light_dir=FRONT_LIGHT)
     images = [render_frame(m, cam, seq.q[k], cfg).image for k in idx]
     repeats = 2 if quick else 5
-    rows = []
+    configs, states, firsts = {}, {}, {}
     for method in SEARCH_NAMES:
-        config = ImageConfig(method=method)
-        state = capture_templates(images[0], m, cam, seq.q[idx[0]], config)
+        configs[method] = ImageConfig(method=method)
+        states[method] = capture_templates(images[0], m, cam, seq.q[idx[0]], configs[method])
         t0 = time.perf_counter()
-        extract_features(images[0], m, cam, seq.q[idx[0]], config, state)
-        first = 1e3 * (time.perf_counter() - t0)
-        samples, stages = [], {}
-        for _ in range(repeats):
+        extract_features(images[0], m, cam, seq.q[idx[0]], configs[method], states[method])
+        firsts[method] = 1e3 * (time.perf_counter() - t0)
+    samples = {method: [] for method in SEARCH_NAMES}
+    stages = {method: {} for method in SEARCH_NAMES}
+    for _ in range(repeats):  # methods interleaved, so a change in machine load hits them alike
+        for method in SEARCH_NAMES:
             for j, k in enumerate(idx):
                 t0 = time.perf_counter()
-                _, diag = extract_features(images[j], m, cam, seq.q[k], config, state)
-                samples.append(time.perf_counter() - t0)
-                for name, s in diag.timings_s.items():
-                    stages.setdefault(name, []).append(s)
-        rows.append({"method": method, "median_ms": 1e3 * statistics.median(samples), "first_call_ms": first,
-                     "stages_median_ms": {k: 1e3 * statistics.median(v) for k, v in stages.items()}})
+                _, diag = extract_features(images[j], m, cam, seq.q[k], configs[method], states[method])
+                samples[method].append(time.perf_counter() - t0)
+                for name, sec in diag.timings_s.items():
+                    stages[method].setdefault(name, []).append(sec)
+    rows = [{"method": method, "median_ms": 1e3 * statistics.median(samples[method]), "first_call_ms": firsts[method],
+             "stages_median_ms": {k: 1e3 * statistics.median(v) for k, v in stages[method].items()}}
+            for method in SEARCH_NAMES]
     best = min(r["median_ms"] for r in rows)
     for r in rows:
         r["over_fastest"] = r["median_ms"] / best
