@@ -103,6 +103,8 @@ def main(argv=None) -> int:
     parser.add_argument("--only", help="run one sequence")
     parser.add_argument("--method", help="front-end method for every sequence (default: each experiment's own)")
     parser.add_argument("--solver", help="solver for every sequence (default: each experiment's own)")
+    parser.add_argument("--robust", type=int, help="IRLS passes per frame (default: TrackConfig's)")
+    parser.add_argument("--theta", type=float, default=0.85, help="g-h-k discount factor")
     parser.add_argument("--frames", type=int, help="frames per sequence (default: each experiment's own)")
     args = parser.parse_args(argv)
     rows, out = [], {"environment": environment(), "sequences": {}}
@@ -115,8 +117,10 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras] for q in seq.q]
         render_s = time.perf_counter() - t0
-        config = TrackConfig(solver=solver, max_steps=steps, theta=0.85)
-        entry = {"method": method, "solver": solver, "steps": steps, "theta": 0.85, "render_s": render_s}
+        extra = {} if args.robust is None else {"robust_passes": args.robust}
+        config = TrackConfig(solver=solver, max_steps=steps, theta=args.theta, **extra)
+        entry = {"method": method, "solver": solver, "steps": steps, "theta": args.theta,
+                 "robust_passes": config.robust_passes, "render_s": render_s}
         for label, extract in (
                 (method, image_extractor(seq.model, seq.cameras, ImageConfig(method=method))),
                 ("exact+0.5px", oracle_extractor(seq.model, seq.cameras, seq.q))):

@@ -14,19 +14,26 @@ from ._errors import InputError
 __all__ = ["register", "image_extractor", "run_demo", "print_summary"]
 
 
-def image_extractor(model, cameras, config=None):
+class image_extractor:  # noqa: N801 (used like a function: image_extractor(model, cameras, config))
     """The tracker's front end: :func:`jaxhand.image.extract_features` carrying its template state.
 
-    Returns ``extract(images, q_pred, image_state) -> (features, image_state, diagnostics)``
-    whose diagnostics hold the window polygons per camera (for overlays) and the front end's
-    visibility timing.
+    Calling it, ``extract(images, q_pred, image_state) -> (features, image_state, diagnostics)``,
+    extracts the features around the prediction; the diagnostics hold the window polygons per
+    camera (for overlays) and the front end's stage timings. After a good solve the tracker
+    calls :meth:`refresh`, which stores the profiles seen at the solved pose as the templates
+    of the links visible there (thesis §4.3.1: templates come from unoccluded views).
     """
-    from .image import ImageConfig, extract_features
 
-    config = ImageConfig() if config is None else config
+    def __init__(self, model, cameras, config=None):
+        from .image import ImageConfig
 
-    def extract(images, q_pred, state):
-        features, diag = extract_features(images, model, cameras, np.asarray(q_pred), config, state)
+        self.model, self.cameras = model, cameras
+        self.config = ImageConfig() if config is None else config
+
+    def __call__(self, images, q_pred, state):
+        from .image import extract_features
+
+        features, diag = extract_features(images, self.model, self.cameras, np.asarray(q_pred), self.config, state)
         windows = [[np.asarray(w.exterior.coords) for w in cd.visibility.windows
                     if w is not None and not w.is_empty and w.geom_type == "Polygon"] for cd in diag.cameras]
         info = {"windows": windows, "method": diag.method}
@@ -34,7 +41,10 @@ def image_extractor(model, cameras, config=None):
             info["timings_s"] = dict(diag.timings_s)
         return features, diag.state, info
 
-    return extract
+    def refresh(self, images, q, state):
+        from .image import capture_templates
+
+        return capture_templates(images, self.model, self.cameras, np.asarray(q), self.config, state)
 
 
 def register(sub) -> None:

@@ -55,6 +55,8 @@ class TrackConfig:
             ``w / (1 + (e / robust_scale_px)^2)``), so a few wrong image features cannot pull the
             pose away. 0 solves once, as the thesis does.
         robust_scale_px: the Cauchy scale (px): a feature this far from the model halves its weight.
+        refresh_templates: after a frame that is not lost, let the front end store the profiles
+            seen at the solved pose as templates (when it keeps templates).
     """
 
     solver: str = "lm"
@@ -66,6 +68,7 @@ class TrackConfig:
     max_rms_px: float = 6.0
     robust_passes: int = 2
     robust_scale_px: float = 2.0
+    refresh_templates: bool = True
 
     def __post_init__(self):
         if not 0.0 <= self.theta <= 1.0:
@@ -170,8 +173,9 @@ class Tracker:
         model: the kinematic model.
         cameras: a camera or a rig (tuple of cameras), in the order images are passed.
         extract: the image front end, ``extract(images, q_pred, image_state) -> (features,
-            image_state, diagnostics)``; :func:`image_extractor` builds it from
-            :func:`jaxhand.image.extract_features`.
+            image_state, diagnostics)``, optionally with ``extract.refresh(images, q, image_state)
+            -> image_state`` to update templates at the solved pose;
+            :class:`jaxhand.cli_track.image_extractor` wraps :func:`jaxhand.image.extract_features`.
         config: tracker settings.
         dt_s: frame interval (s).
     """
@@ -226,6 +230,11 @@ class Tracker:
         share = _valid_share(features)
         conf, lost = confidence_of(rms, share, self.config)
         timings = {"features": t1 - t0, "solve": t2 - t1, "filter": t3 - t2}
+        refresh = getattr(self.extract, "refresh", None)
+        if refresh is not None and not lost and self.config.refresh_templates:
+            t4 = time.perf_counter()
+            image_state = refresh(images, q_meas, image_state)
+            timings["templates"] = time.perf_counter() - t4
         if isinstance(diag, dict) and "timings_s" in diag:  # the front end's own split (e.g. visibility)
             timings.update({f"features.{k}": v for k, v in diag["timings_s"].items()})
         report = StepReport(frame=frame, time_s=time_s, q_pred=np.asarray(q_pred), q_solved=q_meas,
