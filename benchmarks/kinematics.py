@@ -6,20 +6,28 @@ orthographic camera, two tasks are timed:
 - ``fk``: q -> pixels of every link's start and end point, shape (2 links, 2);
 - ``fk_jac``: the same pixels and their Jacobian d pixels / d q, shape (2 links, 2, n_q).
 
-Methods, all run in the same process on the same poses:
+Methods, all run in the same process on the same poses. jaxhand's:
 
 - ``jax``: jaxhand's kernel (``jaxhand.check.keypoint_pixels``, Jacobian by ``jax.jacfwd``) under
-  ``jax.jit``, batched with ``jax.vmap``;
+  ``jax.jit`` with the model and camera as arguments, batched with ``jax.vmap``;
+- ``jax_geo``: jaxhand's own geometric Jacobian (``jaxhand.check.geometric_jacobian``) in the same way;
+- ``jax_api``: the public entry point ``jaxhand.check.autodiff_jacobian`` (``eqx.filter_jit``;
+  one pose, Jacobian only), to show the dispatch cost users pay per call;
+
+and the peers:
+
 - ``numpy``: a hand-written NumPy forward kinematics and analytic (geometric) Jacobian from
   DigitEyes eqs. 8-10: a per-pose function called in a loop for single calls, a version
   vectorised over the batch for batches;
-- ``fd``: central differences (step 1e-6) of jaxhand's jitted FK, with all 2 n_q perturbed
-  states evaluated in one jitted call (``vmap`` over the batch for batches).
+- ``fd``: central differences (step 1e-6) of jaxhand's jitted FK, with all 2 n_q + 1 states of
+  a pose evaluated in one jitted, vmapped call.
 
-Before timing, the NumPy FK and Jacobian are checked against jaxhand's (max abs difference in
-pixels), and the finite-difference error is recorded next to the times. Times are medians of
-repeated samples after a warm-up call; the compile time of each jitted function (its first call,
-trace + compile + run, less the median call) is reported separately.
+Batches of more than CHUNK poses are processed CHUNK poses at a time by every method (see CHUNK).
+Before timing, every method's pixels and Jacobian are compared with ``jax``'s and the run stops
+if NumPy or ``jax_geo`` differ by more than rounding error or finite differences by more than
+their truncation error; the differences are recorded next to the times. Times are medians of
+repeated samples after a warm-up call; the compile time of each jitted function (trace, lower and
+compile ahead of its first call) is reported separately.
 
 Run ``python benchmarks/kinematics.py`` (writes ``benchmarks/results/kinematics.json``) or
 ``python benchmarks/kinematics.py --quick`` for a smoke run (small batch, few repeats, no JSON
@@ -51,9 +59,9 @@ REPO = Path(__file__).resolve().parent.parent
 DEFAULT_OUT = REPO / "benchmarks" / "results" / "kinematics.json"
 MODELS = ("hand21", "hand27")
 FD_EPS = 1e-6
-# Batches are processed CHUNK poses at a time by every method (lax.map over vmapped chunks, a loop
-# over vectorised NumPy chunks): one vmap of jax.jacfwd over 65,536 hand27 poses peaks near 20 GB
-# and is ~7x slower per pose than chunks of 1,024 (256: 1.3x, 4,096: 2.3x slower on 2 EPYC cores).
+# Batches above CHUNK poses are processed CHUNK poses at a time by every method (lax.map over vmapped
+# chunks, a loop over vectorised NumPy chunks), so a batch of 1,024 is a single vmap. One vmap of
+# jax.jacfwd over all 65,536 hand27 poses peaked near 20 GB of memory and took ~27 s per call.
 CHUNK = 1024
 # NumPy must reproduce jaxhand to rounding error (float64); finite differences to O(eps^2) plus
 # O(rounding / eps) ~ 1e-9 relative.
@@ -351,11 +359,13 @@ def _run(fn, n: int) -> float:
 def median_seconds(fn, *, min_sample_s: float, repeats: int, max_total_s: float) -> float:
     """Median over repeated samples of the time of one call of ``fn`` (which must block).
 
-    Each sample runs ``fn`` enough times to last at least ``min_sample_s``; the number of samples
-    is ``repeats``, reduced (never below 3) so that sampling takes about ``max_total_s``.
+    One untimed-for-the-result call warms up and calibrates; each sample then runs ``fn`` enough
+    times to last at least ``min_sample_s``. There are ``repeats`` samples, fewer (never below 3)
+    where that would take longer than ``max_total_s``.
     """
-    fn()  # warm-up
-    t = _run(fn, 1)
+    t = _run(fn, 1)  # warm-up and a first estimate
+    if t < min_sample_s / 10:  # fast call: the single-call estimate is too coarse
+        t = _run(fn, 10) / 10
     n = max(1, int(np.ceil(min_sample_s / max(t, 1e-9))))
     k = max(3, min(repeats, int(max_total_s / max(n * t, 1e-9))))
     gc.collect()
@@ -367,9 +377,10 @@ def median_seconds(fn, *, min_sample_s: float, repeats: int, max_total_s: float)
     return statistics.median(samples)
 
 
-def first_call_seconds(fn) -> float:
+def compile_seconds(jitted, *args) -> float:
+    """Time to trace, lower and compile a jitted function for these arguments (the later call reuses it)."""
     t0 = time.perf_counter()
-    fn()
+    jitted.lower(*args).compile()
     return time.perf_counter() - t0
 
 
@@ -411,6 +422,7 @@ def environment() -> dict:
         "x64": bool(jax.config.jax_enable_x64),
         "commit": _git("rev-parse", "--short=12", "HEAD"),
         "dirty": None if dirty is None else bool(dirty),
+        "load_average_1min_start": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None,
     }
 
 
@@ -467,15 +479,15 @@ def bench_model(name: str, batches: tuple[int, ...], timing: dict, rng: np.rando
     batch = {key: (lambda Q, k=k: _block(k(model, camera, jnp.asarray(Q)))) for key, k in JAX_BATCH_KERNELS.items()}
     batch["fk", "numpy"], batch["fk_jac", "numpy"] = np_kin.fk_batch, np_kin.fk_jac_batch
 
-    # First call of every jitted kernel, before anything else has run it (compile time).
+    # Compile every jitted kernel ahead of time, before anything has called it: trace + lower + compile.
     qj = jnp.asarray(q)
-    first_s = {}
+    compile_s = {}
     for (task, method), k in JAX_KERNELS.items():
-        first_s[task, method, "single"] = first_call_seconds(lambda k=k: _block(k(model, camera, qj)))
-    first_s["fk_jac", "jax_api", "single"] = first_call_seconds(lambda: _block(autodiff_jacobian(model, camera, qj)))
+        compile_s[task, method, "single"] = compile_seconds(k, model, camera, qj)
+    compile_s["fk_jac", "jax_api", "single"] = compile_seconds(autodiff_jacobian, model, camera, qj)
     for b in batches:
         for (task, method), k in JAX_BATCH_KERNELS.items():
-            first_s[task, method, f"batch{b}"] = first_call_seconds(lambda k=k, b=b: _block(k(model, camera, Qj[b])))
+            compile_s[task, method, f"batch{b}"] = compile_seconds(k, model, camera, Qj[b])
 
     errs = check_agreement(model, single, batch, Qs[min(batches)])
 
@@ -485,13 +497,10 @@ def bench_model(name: str, batches: tuple[int, ...], timing: dict, rng: np.rando
             (f"batch{b}", batch, {"jax": Qj[b], "numpy": Qs[b]}) for b in batches]:
         for (task, method), f in calls.items():
             x = arg["numpy"] if method == "numpy" else arg["jax"]
-            t = median_seconds(lambda f=f, x=x: f(x), **kw)
-            first = first_s.get((task, method, mode))
-            rows.append({"task": task, "model": name, "method": method, "mode": mode, "seconds": t,
+            rows.append({"task": task, "model": name, "method": method, "mode": mode,
+                         "seconds": median_seconds(lambda f=f, x=x: f(x), **kw),
                          "n_poses": x.shape[0] if x.ndim == 2 else 1,
-                         # compile time: the first call (trace + compile + one run) less a steady-state call
-                         "compile_s": None if first is None else max(first - t, 0.0),
-                         "max_abs_diff": errs[task, method]})
+                         "compile_s": compile_s.get((task, method, mode)), "max_abs_diff": errs[task, method]})
     return rows
 
 
@@ -549,8 +558,9 @@ def main(argv: list[str] | None = None) -> int:
     out = args.out if args.out is not None else (None if args.quick else DEFAULT_OUT)
 
     env = environment()
-    print(f"kinematics benchmark: {env['cpu']} ({env['cpu_count']} cores), jax {env['jax']} on {env['device']}, "
-          f"float64={env['x64']}, commit {env['commit']}{' (dirty)' if env['dirty'] else ''}")
+    print(f"kinematics benchmark: {env['cpu']} ({env['cpu_count']} cores, load {env['load_average_1min_start']}), "
+          f"jax {env['jax']} on {env['device']}, float64={env['x64']}, "
+          f"commit {env['commit']}{' (dirty)' if env['dirty'] else ''}")
     print("fk: q -> pixels of all link ends; fk_jac: pixels and d pixels/d q (orthographic camera)")
     print("jaxhand: jax = jax.jit kernel (+ jax.jacfwd; lax.map of vmap over chunks of "
           f"{CHUNK} for batches), jax_geo = jaxhand.check.geometric_jacobian jitted,\n"
@@ -562,10 +572,12 @@ def main(argv: list[str] | None = None) -> int:
     for name in MODELS:
         rows += bench_model(name, batches, timing, rng)
     add_ratios(rows)
+    if hasattr(os, "getloadavg"):
+        env["load_average_1min_end"] = round(os.getloadavg()[0], 2)
     print(table(rows))
     print("\n/best peer: time / the fastest peer's (numpy, fd) time for the same task, model and mode (< 1: faster)."
           "\n|diff| jax: max abs difference from the jax row's pixels and Jacobian (px, px/rad, px/mm)."
-          "\ncompile s: first call (trace + compile + run) less the median call.")
+          "\ncompile s: trace + lower + compile, timed ahead of the first call.")
     if out is not None:
         result = {"benchmark": "kinematics", "schema": 1, "quick": args.quick, "environment": env,
                   "settings": {"models": list(MODELS), "batches": list(batches), "fd_eps": FD_EPS,
