@@ -20,8 +20,9 @@ from jaxhand.solve import (
     solve_least_squares,
     status_name,
 )
+from jaxhand.solve._damped import make_damped_gauss_newton
+from jaxhand.solve.gauss_newton import gauss_newton_config
 from jaxhand.solve.levenberg_marquardt import make_levenberg_marquardt
-from jaxhand.solve.step_limited import make_step_limited
 
 # One static config for the solver-by-model grid and the tests that can share its compilations.
 GRID = FitConfig(history=True)
@@ -83,8 +84,8 @@ def problems(name, n=N_PROBLEMS, sigma_deg=5.0, noise_px=0.0, seed=0):
     return m, rig, Q, features_from_poses(m, rig, Q, noise_px=noise_px, rng=rng), perturb(m, Q, sigma_deg, rng)
 
 
-# gn and gn_eta share one compiled program, so they run in the same test.
-PROGRAMS = [("gn", "gn_eta"), ("lm_fixed",), ("lm",), ("bounded",)]
+# gn, gn_eta and lm_fixed share one compiled program, so they run in the same test.
+PROGRAMS = [("gn", "gn_eta", "lm_fixed"), ("lm",), ("bounded",)]
 
 
 @pytest.mark.parametrize("solvers", PROGRAMS, ids=lambda s: "+".join(s))
@@ -119,8 +120,13 @@ def test_solvers_agree_with_each_other_and_with_scipy_on_noisy_features():
     assert ok.mean() >= 0.95
     ref = np.asarray(results["lm"].q)
     assert np.abs(ref - Q).max() < np.radians(5)  # 0.5 px noise: close to the truth, not on it
+    # with noise the unconstrained optimum can lie beyond a limit; there the bounded solver
+    # rightly differs, so it is compared where the unconstrained optimum is inside the box
+    inside = np.all((ref > np.asarray(m.q_lower)) & (ref < np.asarray(m.q_upper)), axis=-1)
+    assert inside.mean() > 0.8
     for s, r in results.items():
-        assert np.abs(np.asarray(r.q)[ok] - ref[ok]).max() < 1e-6, s
+        same = ok & inside if s == "bounded" else ok
+        assert np.abs(np.asarray(r.q)[same] - ref[same]).max() < 1e-6, s
     # scipy's MINPACK Levenberg-Marquardt on the same residuals and Jacobian
     res = jax.jit(residuals)
     jac = jax.jit(residual_jacobian)
@@ -206,7 +212,8 @@ def test_a_link_with_every_feature_masked_gives_singular_and_leaves_its_joint_al
         ok = np.asarray(r.converged)
         assert ok.mean() >= 0.98 and np.all(status_name(r.status)[ok] == "singular"), solver
         assert np.all(np.asarray(r.rank)[ok] == 2)
-        np.testing.assert_allclose(q[:, dip], Q0[:, dip], atol=1e-12)   # the unobserved joint keeps its start
+        # the unobserved joint keeps its start (which the bounded solver first moves 1e-10 inside)
+        np.testing.assert_allclose(q[:, dip], Q0[:, dip], atol=2e-10 if solver == "bounded" else 1e-12)
         others = np.arange(3) != dip
         assert (np.abs(q[:, others] - Q[:, others]).max(-1) < 1e-6).mean() >= 0.98, solver
 
@@ -242,7 +249,7 @@ def test_a_nonfinite_solve_returns_the_start_and_says_so():
         return jnp.sqrt(q) + 1.0
 
     cfg = FitConfig(history=True, max_steps=10)
-    solver = make_step_limited(FitConfig(max_step_rad=jnp.inf), _scalar_space())
+    solver = make_damped_gauss_newton(gauss_newton_config(FitConfig()), _scalar_space())
     r = jax.jit(lambda q0: solve_least_squares(fn, solver, q0, None, _scalar_space(), cfg))(jnp.array([1.0]))
     assert status_name(r.status) == "nonfinite" and not bool(r.converged)
     assert float(r.q[0]) == 1.0 and float(r.cost) == 2.0
@@ -255,7 +262,7 @@ def test_a_diverging_solve_returns_the_start_and_says_so():
         return jnp.cbrt(q)
 
     cfg = FitConfig(max_steps=50, divergence_factor=1e3)
-    solver = make_step_limited(FitConfig(max_step_rad=jnp.inf), _scalar_space())
+    solver = make_damped_gauss_newton(gauss_newton_config(FitConfig()), _scalar_space())
     r = jax.jit(lambda q0: solve_least_squares(fn, solver, q0, None, _scalar_space(), cfg))(jnp.array([1.0]))
     assert status_name(r.status) == "diverged" and not bool(r.converged)
     assert float(r.q[0]) == 1.0 and float(r.cost) == 0.5

@@ -16,14 +16,15 @@ from ..kinematics import validate_q
 from ..model import Model
 from ..residuals import ResidualArgs, residuals
 from ._config import FitConfig, check_config
+from ._damped import make_damped_gauss_newton
 from ._driver import solve_least_squares
 from ._parts import GaussNewtonFamily, StateSpace
 from ._result import FitResult
 from .bounded_trust_region import make_bounded_trust_region
-from .constant_damping import make_constant_damping
+from .constant_damping import constant_damping_config
 from .gauss_newton import gauss_newton_config
 from .levenberg_marquardt import make_levenberg_marquardt
-from .step_limited import make_step_limited
+from .step_limited import step_limited_config
 
 __all__ = ["SOLVERS", "fit", "fit_batch", "solver_named"]
 
@@ -35,13 +36,14 @@ def _unchanged(config: FitConfig) -> FitConfig:
 
 
 #: Solver names accepted by :func:`fit`: the builder of the compiled program and the config it
-#: runs with. ``gn`` is ``gn_eta`` with eta = 1 and no cap, so the two share one program.
+#: runs with. ``gn``, ``gn_eta`` and ``lm_fixed`` are one damped, step-limited Gauss-Newton
+#: update with different (traced) numbers, so they share one compiled program (see ``_damped``).
 _SOLVERS: dict[str, tuple[_Builder, Callable[[FitConfig], FitConfig]]] = {
-    "gn": (make_step_limited, gauss_newton_config),       # thesis eq. 3.4
-    "gn_eta": (make_step_limited, _unchanged),            # thesis §3.2.4, fixed or adaptive eta
-    "lm_fixed": (make_constant_damping, _unchanged),      # DigitEyes eq. 5, constant mu I
-    "lm": (make_levenberg_marquardt, _unchanged),         # optimistix LevenbergMarquardt
-    "bounded": (make_bounded_trust_region, _unchanged),   # Coleman-Li trust region inside the limits
+    "gn": (make_damped_gauss_newton, gauss_newton_config),          # thesis eq. 3.4
+    "gn_eta": (make_damped_gauss_newton, step_limited_config),      # thesis §3.2.4, fixed or adaptive eta
+    "lm_fixed": (make_damped_gauss_newton, constant_damping_config),  # DigitEyes eq. 5, constant mu I
+    "lm": (make_levenberg_marquardt, _unchanged),                   # optimistix LevenbergMarquardt
+    "bounded": (make_bounded_trust_region, _unchanged),             # Coleman-Li trust region in the limits
 }
 SOLVERS: tuple[str, ...] = tuple(_SOLVERS)
 
@@ -131,7 +133,7 @@ def _as_arrays(feats: tuple[Features, ...]) -> tuple[Features, ...]:
     dtype = jnp.asarray(0.0).dtype   # float64 (jaxhand enables x64)
 
     def conv(x):
-        if isinstance(x, jax.Array) and x.dtype in (dtype, jnp.bool_):
+        if isinstance(x, jax.Array) and x.dtype in (dtype, jnp.bool_) and not x.weak_type:
             return x
         a = np.asarray(x)
         return jnp.asarray(a, dtype=bool if a.dtype == bool else dtype)

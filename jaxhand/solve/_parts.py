@@ -22,7 +22,7 @@ from jaxtyping import Array, Bool, Float, PyTree, Scalar
 
 from ..model import Model
 
-__all__ = ["StateSpace", "GaussNewtonFamily", "Retracted", "StepCapped"]
+__all__ = ["StateSpace", "GaussNewtonFamily", "Retracted", "StepLimited", "is_finite"]
 
 
 class StateSpace(eqx.Module):
@@ -153,14 +153,16 @@ def _as_matrix_struct(f_info_struct):
                                          lx.MatrixLinearOperator(jnp.zeros((r.shape[0], n), r.dtype)))
 
 
-class StepCapped(optx.AbstractDescent):
-    """Wrap a descent so that no entry of a step exceeds its cap (the adaptive eta).
+class StepLimited(optx.AbstractDescent):
+    """Wrap a descent to scale its steps by ``eta`` and keep every entry within its cap.
 
-    A step ``dq`` with ``max_i |dq_i| / cap_i = s > 1`` is replaced by ``dq / s``: the direction
-    is kept and the correction stays incremental (thesis §3.2.4).
+    The inner step ``dq`` becomes ``eta * dq / max(1, s)`` with ``s = max_i |dq_i| / cap_i``: the
+    direction is kept and the correction stays incremental (thesis §3.2.4). ``eta = 1`` and
+    infinite caps leave the step unchanged.
     """
 
     inner: optx.AbstractDescent
+    eta: Float[Array, ""]
     cap: Float[Array, " nq"]
 
     def init(self, y, f_info_struct):
@@ -174,7 +176,7 @@ class StepCapped(optx.AbstractDescent):
         ratio = jnp.max(jnp.abs(diff) / self.cap)
         # Guard: ratio <= 1 (or NaN from a failed solve, handled by the driver) keeps the step.
         scale = jnp.where(ratio > 1, 1.0 / jnp.where(ratio > 1, ratio, 1.0), 1.0)
-        return diff * scale, result
+        return diff * (self.eta * scale), result
 
 
 def is_finite(*xs) -> Bool[Array, ""]:

@@ -11,26 +11,25 @@ the undetermined directions. The fixed points are the stationary points of H, so
 iteration converges to the same minimum as Gauss-Newton, linearly with rate about
 ``mu / (sigma_min^2 + mu)`` (sigma_min: J's smallest non-zero singular value) instead of
 quadratically. ``config.mu`` is in px^2 per q unit^2; the default 1e-3 is negligible next to the
-hand models' sigma^2 (1 to 1e4) and still regularises exact rank loss.
+hand models' sigma^2 (1 to 1e4) and still regularises exact rank loss. (The family's relative
+floor, 1e-10 of J^T J's largest diagonal entry, takes over only where it exceeds mu.)
 
 Stopping rules: shared (``jaxhand.solve._stopping``).
 
-Optimistix parts: ``DampedNewtonDescent`` (QR of the stacked system ``[J; sqrt(mu) I]``)
-with ``LearningRate(1 / mu)``: optimistix's damped descent reads its step size as 1/lambda.
+Program: the damped family of :mod:`._damped` with eta = 1 and no cap (shared with ``gn`` and
+``gn_eta``).
 """
 
 from __future__ import annotations
 
-import lineax as lx
-import optimistix as optx
+import equinox as eqx
 
 from ._config import FitConfig
-from ._parts import GaussNewtonFamily, Retracted, StateSpace
+from .gauss_newton import _INF, _ONE
 
-__all__ = ["make_constant_damping"]
+__all__ = ["constant_damping_config"]
 
 
-def make_constant_damping(config: FitConfig, space: StateSpace) -> GaussNewtonFamily:
-    """DigitEyes' update with ``S = config.mu * I``."""
-    descent = Retracted(optx.DampedNewtonDescent(linear_solver=lx.QR()), space)
-    return GaussNewtonFamily(descent, optx.LearningRate(1.0 / config.mu))
+def constant_damping_config(config: FitConfig) -> FitConfig:
+    """``config`` with eta = 1 and no step caps; mu is the config's."""
+    return eqx.tree_at(lambda c: (c.eta, c.max_step_rad, c.max_step_mm), config, (_ONE, _INF, _INF))

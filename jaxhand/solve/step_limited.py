@@ -3,7 +3,7 @@
 The thesis's RR example diverges from a distant start because a full Gauss-Newton correction
 there is not *incremental*; it converges when the update becomes::
 
-    q_{k+1} = q_k - eta_k (J_k^T J_k)^+ J_k^T r_k
+    q_{k+1} = q_k - eta_k (J_k^T J_k)^-1 J_k^T r_k
 
 Two ways to choose eta_k, combined:
 
@@ -16,28 +16,23 @@ Two ways to choose eta_k, combined:
   is plain Gauss-Newton again, with its quadratic convergence.
 
 With the defaults (eta = 1, caps 0.3 rad and 20 mm) only the adaptive rule acts; the
-thesis's fixed-eta run is ``FitConfig(eta=0.1, max_step_rad=inf, max_step_mm=inf)``.
-Stopping rules as for Gauss-Newton (``jaxhand.solve._stopping``).
+thesis's fixed-eta run is ``FitConfig(eta=0.1, max_step_rad=inf, max_step_mm=inf)``. The
+Gauss-Newton step is computed as in :mod:`.gauss_newton` (mu = 0 and the relative damping
+floor of :mod:`._damped`; ``config.mu`` is not used). Stopping rules as for Gauss-Newton (``jaxhand.solve._stopping``).
 
-Optimistix parts: ``NewtonDescent`` (SVD) wrapped in a per-entry step cap, and
-``LearningRate(eta)``.
+Program: the damped family of :mod:`._damped` (shared with ``gn`` and ``lm_fixed``).
 """
 
 from __future__ import annotations
 
-import jax.numpy as jnp
-import lineax as lx
-import numpy as np
-import optimistix as optx
+import equinox as eqx
 
 from ._config import FitConfig
-from ._parts import GaussNewtonFamily, Retracted, StateSpace, StepCapped
+from .gauss_newton import _MU
 
-__all__ = ["make_step_limited"]
+__all__ = ["step_limited_config"]
 
 
-def make_step_limited(config: FitConfig, space: StateSpace) -> GaussNewtonFamily:
-    """Gauss-Newton with the step factor eta and the per-entry step caps of ``config``."""
-    cap = jnp.where(np.array(space.is_length), config.max_step_mm, config.max_step_rad)
-    descent = Retracted(StepCapped(optx.NewtonDescent(linear_solver=lx.SVD()), cap), space)
-    return GaussNewtonFamily(descent, optx.LearningRate(config.eta))
+def step_limited_config(config: FitConfig) -> FitConfig:
+    """``config`` with mu = 0 (Gauss-Newton's step); eta and the caps are the config's."""
+    return eqx.tree_at(lambda c: c.mu, config, _MU)
