@@ -57,6 +57,8 @@ class TrackConfig:
         robust_scale_px: the Cauchy scale (px): a feature this far from the model halves its weight.
         refresh_templates: after a frame that is not lost, let the front end store the profiles
             seen at the solved pose as templates (when it keeps templates).
+        hold_on_loss: on a lost frame, report the last good estimate and predict it standing
+            still, rather than filtering the lost frame's solve into the state.
     """
 
     solver: str = "lm"
@@ -69,6 +71,7 @@ class TrackConfig:
     robust_passes: int = 2
     robust_scale_px: float = 2.0
     refresh_templates: bool = True
+    hold_on_loss: bool = True
 
     def __post_init__(self):
         if not 0.0 <= self.theta <= 1.0:
@@ -88,6 +91,7 @@ class TrackState:
     ghk: GHKState
     image_state: Any
     frames_done: int = 0
+    q_last: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -195,7 +199,7 @@ class Tracker:
     def init(self, q0, image_state=None) -> TrackState:
         """The state before the first frame: the filter sits at q0 with zero velocity."""
         q0 = validate_q(self.model, q0, name="initial pose", within_limits=True)
-        return TrackState(ghk=ghk_init(jnp.asarray(q0)), image_state=image_state)
+        return TrackState(ghk=ghk_init(jnp.asarray(q0)), image_state=image_state, q_last=q0)
 
     def step(self, state: TrackState, images: Sequence[np.ndarray], frame: int = 0, time_s: float = 0.0
              ) -> tuple[TrackState, StepReport]:
@@ -220,15 +224,22 @@ class Tracker:
         t2 = time.perf_counter()
         ok = bool(np.all(np.isfinite(q_solved))) and np.isfinite(cost)
         q_meas = q_solved if ok else np.asarray(q_pred)
-        filtered, ghk_next = _filter_step(self.model, state.ghk, jnp.asarray(q_meas), jnp.asarray(self.config.theta),
-                                          jnp.asarray(self.dt_s), self.config.filter)
-        filtered = np.asarray(filtered)
-        t3 = time.perf_counter()
         n_res = max(1, 2 * sum(int(np.sum(f.tip_valid)) for f in features)
                     + 2 * sum(int(np.sum(f.line_valid)) for f in features))
         rms = float(np.sqrt(2.0 * cost / n_res)) if ok else float("inf")
         share = _valid_share(features)
         conf, lost = confidence_of(rms, share, self.config)
+        if lost and self.config.hold_on_loss and state.q_last is not None:
+            # A lost frame's solve fits stray features: hold the last good estimate still
+            # (zero velocity and acceleration) instead of letting the filter extrapolate it.
+            filtered = np.asarray(state.q_last)
+            ghk_next = GHKState(x=jnp.asarray(filtered), v=jnp.zeros_like(state.ghk.v), a=jnp.zeros_like(state.ghk.a))
+        else:
+            filtered, ghk_next = _filter_step(self.model, state.ghk, jnp.asarray(q_meas),
+                                              jnp.asarray(self.config.theta), jnp.asarray(self.dt_s),
+                                              self.config.filter)
+            filtered = np.asarray(filtered)
+        t3 = time.perf_counter()
         timings = {"features": t1 - t0, "solve": t2 - t1, "filter": t3 - t2}
         refresh = getattr(self.extract, "refresh", None)
         if refresh is not None and not lost and self.config.refresh_templates:
@@ -241,5 +252,6 @@ class Tracker:
                             q_filtered=filtered, cost=cost if ok else float("nan"), rms_px=rms,
                             iterations=int(result.iterations), status=str(result.status_name()), valid_share=share,
                             confidence=conf, lost=lost, timings_s=timings, diagnostics=diag)
-        return TrackState(ghk=ghk_next, image_state=image_state, frames_done=state.frames_done + 1), report
+        return TrackState(ghk=ghk_next, image_state=image_state, frames_done=state.frames_done + 1,
+                          q_last=filtered), report
 

@@ -64,6 +64,8 @@ def test_missing_features_never_write_nan(tmp_path, seq):
     assert values.shape[1] == 8 and np.all(np.isfinite(values))
     assert cols["lost"][3] == 1 and cols["confidence"][3] == 0.0
     assert summary["lost_frames"] == 1 and summary["frames_before_first_loss"] == 3
+    # the lost frame holds the last good estimate (hold_on_loss) instead of filtering stray fits
+    assert cols["middle_mcp_deg"][3] == cols["middle_mcp_deg"][2]
 
 
 def test_corrupt_frame_is_reported_and_skipped(tmp_path, seq, capsys):
