@@ -105,6 +105,7 @@ def main(argv=None) -> int:
     parser.add_argument("--solver", help="solver for every sequence (default: each experiment's own)")
     parser.add_argument("--robust", type=int, help="IRLS passes per frame (default: TrackConfig's)")
     parser.add_argument("--theta", type=float, default=0.85, help="g-h-k discount factor")
+    parser.add_argument("--size", default="320x240", help="image size WxH")
     parser.add_argument("--frames", type=int, help="frames per sequence (default: each experiment's own)")
     args = parser.parse_args(argv)
     rows, out = [], {"environment": environment(), "sequences": {}}
@@ -112,14 +113,14 @@ def main(argv=None) -> int:
     for name, method, solver, steps, frames in EXPERIMENTS:
         if args.only and name != args.only:
             continue
-        seq = make_preset(name, frames=12 if args.quick else (args.frames or frames))
+        seq = make_preset(name, frames=12 if args.quick else (args.frames or frames), size=args.size)
         method, solver = args.method or method, args.solver or solver
         t0 = time.perf_counter()
         images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras] for q in seq.q]
         render_s = time.perf_counter() - t0
         extra = {} if args.robust is None else {"robust_passes": args.robust}
         config = TrackConfig(solver=solver, max_steps=steps, theta=args.theta, **extra)
-        entry = {"method": method, "solver": solver, "steps": steps, "theta": args.theta,
+        entry = {"method": method, "solver": solver, "steps": steps, "theta": args.theta, "size": args.size,
                  "robust_passes": config.robust_passes, "render_s": render_s}
         for label, extract in (
                 (method, image_extractor(seq.model, seq.cameras, ImageConfig(method=method))),

@@ -70,7 +70,7 @@ def register(sub) -> None:
     d = sub.add_parser("demo", help="render a built-in sequence, track it, write and print the report")
     d.add_argument("--out", default="demo_out", help="output folder")
     d.add_argument("--preset", default="two_finger_occlusion", help="synthetic sequence to render and track")
-    d.add_argument("--frames", type=int, default=40)
+    d.add_argument("--frames", type=int, default=80, help="frames to render (the motion is the same for any count)")
     d.set_defaults(func=_demo)
 
 
@@ -148,7 +148,7 @@ def print_summary(summary: dict, out: Path, file=None) -> None:
             print(f"  {out / name}", file=file)
 
 
-def run_demo(out: str | Path, preset: str = "two_finger_occlusion", frames: int = 40) -> dict:
+def run_demo(out: str | Path, preset: str = "two_finger_occlusion", frames: int = 80) -> dict:
     """Render ``preset``, track it with the thesis's proposed method and write the report."""
     from .render import RenderConfig, make_preset, write_sequence
 
