@@ -6,21 +6,13 @@ stored without outputs and ``tests/test_notebooks.py`` executes it.
 
 from pathlib import Path
 
-import nbformat
+from _nbgen import Notebook
 
 HERE = Path(__file__).resolve().parent
 OUT = HERE / "03_image_analysis.ipynb"
 
-CELLS: list[tuple[str, str]] = []
-
-
-def md(text: str) -> None:
-    CELLS.append(("markdown", text.strip("\n")))
-
-
-def code(text: str) -> None:
-    CELLS.append(("code", text.strip("\n")))
-
+nb = Notebook()
+md, code = nb.md, nb.code
 
 md(r"""
 # 03 · Image analysis
@@ -351,13 +343,4 @@ axes[1].set(ylabel="true midpoint to the found line (px)", title=f"line offset e
 plt.show()
 """)
 
-nb = nbformat.v4.new_notebook()
-nb.metadata = {"kernelspec": {"display_name": "Python 3 (ipykernel)", "language": "python", "name": "python3"},
-               "language_info": {"name": "python"}}
-nb.cells = [nbformat.v4.new_markdown_cell(src) if kind == "markdown" else nbformat.v4.new_code_cell(src)
-            for kind, src in CELLS]
-for i, cell in enumerate(nb.cells):   # stable ids, so regenerating gives the same file
-    cell.id = f"cell-{i:02d}"
-nbformat.validate(nb)
-nbformat.write(nb, OUT)
-print(f"wrote {OUT}")
+nb.write(OUT)

@@ -2,19 +2,12 @@
 
 from pathlib import Path
 
-import nbformat
-from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
+from _nbgen import Notebook
 
-cells = []
+OUT = Path(__file__).resolve().with_name("05_3d_mouse.ipynb")
 
-
-def md(text: str) -> None:
-    cells.append(new_markdown_cell(text.strip("\n")))
-
-
-def code(text: str) -> None:
-    cells.append(new_code_cell(text.strip("\n")))
-
+nb = Notebook()
+md, code = nb.md, nb.code
 
 md(r"""
 # 05 · The DigitEyes 3D mouse
@@ -266,8 +259,4 @@ fig.tight_layout()
 plt.show()
 """)
 
-nb = new_notebook(cells=cells, metadata={
-    "kernelspec": {"display_name": "Python 3 (ipykernel)", "language": "python", "name": "python3"},
-    "language_info": {"name": "python"}})
-nbformat.validate(nb)
-nbformat.write(nb, Path(__file__).with_name("05_3d_mouse.ipynb"))
+nb.write(OUT)
