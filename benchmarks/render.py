@@ -31,25 +31,23 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # o
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import importlib.metadata  # noqa: E402
-import json  # noqa: E402
-import platform  # noqa: E402
 import statistics  # noqa: E402
-import subprocess  # noqa: E402
-import time  # noqa: E402
+import sys  # noqa: E402
 from functools import partial  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
-import jax  # noqa: E402
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _common import REPO, RESULTS, environment, first_call_seconds, time_call, write_json  # noqa: E402
 
 import jaxhand as jh  # noqa: E402
 from jaxhand.render import RenderConfig, fit_perspective, make_preset, render_frame  # noqa: E402
 from jaxhand.render._frame import pill_geometry  # noqa: E402
 
-REPO = Path(__file__).resolve().parent.parent
-DEFAULT_OUT = REPO / "benchmarks" / "results" / "render.json"
+DEFAULT_OUT = RESULTS / "render.json"
 CASES = (("hand21", "full_hand_spread_flex"), ("two_fingers", "two_finger_occlusion"))
 SIZES = ((320, 240), (640, 480))
 MODES = ("binary", "shaded")
@@ -91,12 +89,8 @@ def hull_silhouette(model, camera, q) -> np.ndarray:
 
 
 def _median_ms(fn, args_list, repeats: int) -> float:
-    samples = []
-    for _ in range(repeats):
-        for args in args_list:
-            t0 = time.perf_counter()
-            fn(*args)
-            samples.append(time.perf_counter() - t0)
+    """Median milliseconds of one call of ``fn`` over every argument tuple, ``repeats`` passes."""
+    samples = [time_call(lambda args=args: fn(*args))[0] for _ in range(repeats) for args in args_list]
     return 1e3 * statistics.median(samples)
 
 
@@ -110,33 +104,11 @@ def _cameras(model, preset, size):
     return seq.q, {"orthographic": ortho, "perspective": persp}
 
 
-def _git(*args) -> str | None:
-    try:
-        out = subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True, timeout=10, check=True)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return out.stdout.strip()
-
-
-def _cpu_name() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
-def environment() -> dict:
-    dirty = _git("status", "--porcelain", "--untracked-files=no", "--", "jaxhand/render", "benchmarks/render.py")
-    return {
-        "cpu": _cpu_name(), "cpu_count": os.cpu_count(), "threads": 1, "load_average_1min": os.getloadavg()[0],
-        "platform": f"{platform.system()} {platform.machine()}",
-        "python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__,
-        "jax": jax.__version__, "jaxlib": importlib.metadata.version("jaxlib"), "jaxhand": jh.__version__,
-        "commit": _git("rev-parse", "--short=12", "HEAD"), "dirty": None if dirty is None else bool(dirty),
-    }
+def bench_environment() -> dict:
+    """``_common.environment`` with this benchmark's extras: one thread, OpenCV, jaxhand."""
+    env = environment(watched=("jaxhand/render", "benchmarks/render.py"))
+    env.update(threads=1, opencv=cv2.__version__, jaxhand=jh.__version__)
+    return env
 
 
 def run(quick: bool) -> dict:
@@ -152,9 +124,7 @@ def run(quick: bool) -> dict:
                 cam = cams[kind]
                 for mode in MODES:
                     cfg = RenderConfig(mode=mode)
-                    t0 = time.perf_counter()
-                    render_frame(model, cam, poses[0], cfg)
-                    first_ms = 1e3 * (time.perf_counter() - t0)
+                    first_ms = 1e3 * first_call_seconds(partial(render_frame, model, cam, poses[0], cfg))
                     ours = _median_ms(render_frame, [(model, cam, q, cfg) for q in poses], repeats)
                     few = poses[np.linspace(0, n_poses - 1, naive_poses).round().astype(int)]
                     naive = _median_ms(partial(render_frame, use_bbox=False), [(model, cam, q, cfg) for q in few], 1)
@@ -174,7 +144,7 @@ def run(quick: bool) -> dict:
                         row["hull_over_ours"] = row["hull_median_ms"] / ours
                     results.append(row)
                     print(_format_row(row), flush=True)
-    return {"benchmark": "render", "environment": environment(), "quick": quick,
+    return {"benchmark": "render", "environment": bench_environment(), "quick": quick,
             "poses": n_poses, "repeats": repeats, "results": results,
             "metrics": {f"render.{r['model']}.{r['camera']}.{r['size']}.{r['mode']}.median_ms": r["ours_median_ms"]
                         for r in results}}
@@ -195,16 +165,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="few poses and repeats; no JSON unless --out")
     parser.add_argument("--out", type=Path, default=None, help=f"JSON path (default {DEFAULT_OUT.relative_to(REPO)})")
     args = parser.parse_args(argv)
-    env = environment()
-    print(f"render benchmark: {env['cpu']} ({env['cpu_count']} cores, load {env['load_average_1min']:.1f}), 1 thread, "
-          f"numpy {env['numpy']}, opencv {env['opencv']}, "
+    env = bench_environment()
+    print(f"render benchmark: {env['cpu']} ({env['cpu_count']} cores, load {env['load_average_1min_start']:.1f}), "
+          f"1 thread, numpy {env['numpy']}, opencv {env['opencv']}, "
           f"commit {env['commit']}{' (dirty)' if env['dirty'] else ''}")
     print(HEADER)
     data = run(args.quick)
     out = args.out if args.out is not None else (None if args.quick else DEFAULT_OUT)
     if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(data, indent=2) + "\n")
+        write_json(data, out)
         print(f"wrote {out}")
     return 0
 
