@@ -37,13 +37,7 @@ unless ``--out`` is given).
 from __future__ import annotations
 
 import argparse
-import gc
-import importlib.metadata
 import json
-import os
-import platform
-import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -52,11 +46,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-import jaxhand as jh
-from jaxhand.check import autodiff_jacobian, geometric_jacobian, keypoint_pixels, keypoints
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-REPO = Path(__file__).resolve().parent.parent
-DEFAULT_OUT = REPO / "benchmarks" / "results" / "kinematics.json"
+from _common import REPO, RESULTS, block, environment, load_average, median_seconds  # noqa: E402
+
+import jaxhand as jh  # noqa: E402
+from jaxhand.check import autodiff_jacobian, geometric_jacobian, keypoint_pixels, keypoints  # noqa: E402
+
+DEFAULT_OUT = RESULTS / "kinematics.json"
 MODELS = ("hand21", "hand27")
 FD_EPS = 1e-6
 # Batches above CHUNK poses are processed CHUNK poses at a time by every method (lax.map over vmapped
@@ -345,38 +342,6 @@ METHOD_ORDER = {"jax": 0, "jax_geo": 1, "jax_api": 2, "numpy": 3, "fd": 4}
 # Timing
 # ---------------------------------------------------------------------------------------------
 
-def _block(x):
-    return jax.block_until_ready(x)
-
-
-def _run(fn, n: int) -> float:
-    t0 = time.perf_counter()
-    for _ in range(n):
-        fn()
-    return time.perf_counter() - t0
-
-
-def median_seconds(fn, *, min_sample_s: float, repeats: int, max_total_s: float) -> float:
-    """Median over repeated samples of the time of one call of ``fn`` (which must block).
-
-    One untimed-for-the-result call warms up and calibrates; each sample then runs ``fn`` enough
-    times to last at least ``min_sample_s``. There are ``repeats`` samples, fewer (never below 3)
-    where that would take longer than ``max_total_s``.
-    """
-    t = _run(fn, 1)  # warm-up and a first estimate
-    if t < min_sample_s / 10:  # fast call: the single-call estimate is too coarse
-        t = _run(fn, 10) / 10
-    n = max(1, int(np.ceil(min_sample_s / max(t, 1e-9))))
-    k = max(3, min(repeats, int(max_total_s / max(n * t, 1e-9))))
-    gc.collect()
-    gc.disable()
-    try:
-        samples = [_run(fn, n) / n for _ in range(k)]
-    finally:
-        gc.enable()
-    return statistics.median(samples)
-
-
 def compile_seconds(jitted, *args) -> float:
     """Time to trace, lower and compile a jitted function for these arguments (the later call reuses it)."""
     t0 = time.perf_counter()
@@ -388,42 +353,11 @@ def compile_seconds(jitted, *args) -> float:
 # Environment
 # ---------------------------------------------------------------------------------------------
 
-def _cpu_name() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
-def _git(*args) -> str | None:
-    try:
-        out = subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True, timeout=10, check=True)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return out.stdout.strip()
-
-
-def environment() -> dict:
-    dirty = _git("status", "--porcelain", "--untracked-files=no", "--", "jaxhand", "benchmarks/kinematics.py")
-    dev = jax.devices()[0]
-    return {
-        "cpu": _cpu_name(),
-        "cpu_count": os.cpu_count(),
-        "device": f"{dev.platform}:{dev.device_kind}",
-        "platform": f"{platform.system()} {platform.machine()}",
-        "python": platform.python_version(),
-        "jax": jax.__version__,
-        "jaxlib": importlib.metadata.version("jaxlib"),
-        "numpy": np.__version__,
-        "jaxhand": jh.__version__,
-        "x64": bool(jax.config.jax_enable_x64),
-        "commit": _git("rev-parse", "--short=12", "HEAD"),
-        "dirty": None if dirty is None else bool(dirty),
-        "load_average_1min_start": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None,
-    }
+def bench_environment() -> dict:
+    """``_common.environment`` with jaxhand's version, watching jaxhand and this script for changes."""
+    env = environment(watched=("jaxhand", "benchmarks/kinematics.py"))
+    env["jaxhand"] = jh.__version__
+    return env
 
 
 # ---------------------------------------------------------------------------------------------
@@ -473,10 +407,10 @@ def bench_model(name: str, batches: tuple[int, ...], timing: dict, rng: np.rando
     Qj = {b: jnp.asarray(Q) for b, Q in Qs.items()}
 
     # Every method as a blocking call on NumPy input (jax methods convert it; timing uses device arrays).
-    single = {key: (lambda q, k=k: _block(k(model, camera, jnp.asarray(q)))) for key, k in JAX_KERNELS.items()}
-    single["fk_jac", "jax_api"] = lambda q: _block(autodiff_jacobian(model, camera, jnp.asarray(q)))
+    single = {key: (lambda q, k=k: block(k(model, camera, jnp.asarray(q)))) for key, k in JAX_KERNELS.items()}
+    single["fk_jac", "jax_api"] = lambda q: block(autodiff_jacobian(model, camera, jnp.asarray(q)))
     single["fk", "numpy"], single["fk_jac", "numpy"] = np_kin.fk, np_kin.fk_jac
-    batch = {key: (lambda Q, k=k: _block(k(model, camera, jnp.asarray(Q)))) for key, k in JAX_BATCH_KERNELS.items()}
+    batch = {key: (lambda Q, k=k: block(k(model, camera, jnp.asarray(Q)))) for key, k in JAX_BATCH_KERNELS.items()}
     batch["fk", "numpy"], batch["fk_jac", "numpy"] = np_kin.fk_batch, np_kin.fk_jac_batch
 
     # Compile every jitted kernel ahead of time, before anything has called it: trace + lower + compile.
@@ -557,7 +491,7 @@ def main(argv: list[str] | None = None) -> int:
         batches, timing = (1024, 65536), {"min_sample_s": 0.02, "repeats": 9, "max_total_s": 3.0}
     out = args.out if args.out is not None else (None if args.quick else DEFAULT_OUT)
 
-    env = environment()
+    env = bench_environment()
     print(f"kinematics benchmark: {env['cpu']} ({env['cpu_count']} cores, load {env['load_average_1min_start']}), "
           f"jax {env['jax']} on {env['device']}, float64={env['x64']}, "
           f"commit {env['commit']}{' (dirty)' if env['dirty'] else ''}")
@@ -572,8 +506,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in MODELS:
         rows += bench_model(name, batches, timing, rng)
     add_ratios(rows)
-    if hasattr(os, "getloadavg"):
-        env["load_average_1min_end"] = round(os.getloadavg()[0], 2)
+    env["load_average_1min_end"] = load_average()
     print(table(rows))
     print("\n/best peer: time / the fastest peer's (numpy, fd) time for the same task, model and mode (< 1: faster)."
           "\n|diff| jax: max abs difference from the jax row's pixels and Jacobian (px, px/rad, px/mm)."
