@@ -41,19 +41,19 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # o
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import importlib.metadata  # noqa: E402
-import json  # noqa: E402
-import platform  # noqa: E402
 import statistics  # noqa: E402
-import subprocess  # noqa: E402
-import time  # noqa: E402
+import sys  # noqa: E402
+from functools import partial  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
-import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 import shapely  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _common import REPO, RESULTS, environment, first_call_seconds, median_seconds, time_call, write_json  # noqa: E402
 
 import jaxhand as jh  # noqa: E402
 from jaxhand.image import (  # noqa: E402
@@ -67,8 +67,7 @@ from jaxhand.image import (  # noqa: E402
 from jaxhand.image._sampling import INTERPOLATION_FLAGS  # noqa: E402
 from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402
 
-REPO = Path(__file__).resolve().parent.parent
-DEFAULT_OUT = REPO / "benchmarks" / "results" / "features.json"
+DEFAULT_OUT = RESULTS / "features.json"
 FRONT_LIGHT = (0.0, 0.0, -1.0)
 OBLIQUE_LIGHT = RenderConfig().light_dir
 NOISE_SIGMA = 4.0
@@ -83,33 +82,11 @@ CONDITIONS = (
 OCCLUDED_SHARE = (0.3, 0.95)
 
 
-def _git(*args) -> str | None:
-    try:
-        out = subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True, timeout=10, check=True)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return out.stdout.strip()
-
-
-def _cpu_name() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
-def environment() -> dict:
-    dirty = _git("status", "--porcelain", "--untracked-files=no", "--", "jaxhand/image", "benchmarks/features.py")
-    return {
-        "cpu": _cpu_name(), "cpu_count": os.cpu_count(), "threads": 1, "load_average_1min": os.getloadavg()[0],
-        "platform": f"{platform.system()} {platform.machine()}", "python": platform.python_version(),
-        "numpy": np.__version__, "opencv": cv2.__version__, "shapely": shapely.__version__, "jax": jax.__version__,
-        "jaxlib": importlib.metadata.version("jaxlib"), "jaxhand": jh.__version__,
-        "commit": _git("rev-parse", "--short=12", "HEAD"), "dirty": None if dirty is None else bool(dirty),
-    }
+def bench_environment() -> dict:
+    """``_common.environment`` with this benchmark's extras: one thread, OpenCV, Shapely, jaxhand."""
+    env = environment(watched=("jaxhand/image", "benchmarks/features.py"))
+    env.update(threads=1, opencv=cv2.__version__, shapely=shapely.__version__, jaxhand=jh.__version__)
+    return env
 
 
 def line_errors(model, camera, q, lines) -> tuple[np.ndarray, np.ndarray]:
@@ -199,12 +176,8 @@ def _loop_sampling(grey, points, interpolation):
 
 
 def _median_ms(fn, repeats: int) -> float:
-    samples = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        samples.append(time.perf_counter() - t0)
-    return 1e3 * statistics.median(samples)
+    """Median milliseconds of ``repeats`` single calls of ``fn`` (after a warm-up call)."""
+    return 1e3 * median_seconds(fn, repeats=repeats, min_sample_s=0.0)
 
 
 def timing(quick: bool) -> tuple[list[dict], dict]:
@@ -218,17 +191,16 @@ def timing(quick: bool) -> tuple[list[dict], dict]:
     for method in SEARCH_NAMES:
         configs[method] = ImageConfig(method=method)
         states[method] = capture_templates(images[0], m, cam, seq.q[idx[0]], configs[method])
-        t0 = time.perf_counter()
-        extract_features(images[0], m, cam, seq.q[idx[0]], configs[method], states[method])
-        firsts[method] = 1e3 * (time.perf_counter() - t0)
+        firsts[method] = 1e3 * first_call_seconds(
+            partial(extract_features, images[0], m, cam, seq.q[idx[0]], configs[method], states[method]))
     samples = {method: [] for method in SEARCH_NAMES}
     stages = {method: {} for method in SEARCH_NAMES}
     for _ in range(repeats):  # methods interleaved, so a change in machine load hits them alike
         for method in SEARCH_NAMES:
             for j, k in enumerate(idx):
-                t0 = time.perf_counter()
-                _, diag = extract_features(images[j], m, cam, seq.q[k], configs[method], states[method])
-                samples[method].append(time.perf_counter() - t0)
+                t, (_, diag) = time_call(
+                    partial(extract_features, images[j], m, cam, seq.q[k], configs[method], states[method]))
+                samples[method].append(t)
                 for name, sec in diag.timings_s.items():
                     stages[method].setdefault(name, []).append(sec)
     rows = [{"method": method, "median_ms": 1e3 * statistics.median(samples[method]), "first_call_ms": firsts[method],
@@ -306,8 +278,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=None, help=f"JSON path (default {DEFAULT_OUT.relative_to(REPO)})")
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
-    env = environment()
-    print(f"feature benchmark: {env['cpu']} ({env['cpu_count']} cores, load {env['load_average_1min']:.1f}), "
+    env = bench_environment()
+    print(f"feature benchmark: {env['cpu']} ({env['cpu_count']} cores, load {env['load_average_1min_start']:.1f}), "
           f"1 thread, opencv {env['opencv']}, shapely {env['shapely']}, "
           f"commit {env['commit']}{' (dirty)' if env['dirty'] else ''}")
     print(HEADER)
@@ -321,8 +293,7 @@ def main(argv: list[str] | None = None) -> int:
             "metrics": _metrics(accuracy, times, peer)}
     out = args.out if args.out is not None else (None if args.quick else DEFAULT_OUT)
     if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(data, indent=2) + "\n")
+        write_json(data, out)
         print(f"wrote {out}")
     return 0
 

@@ -16,25 +16,24 @@ sequence.
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
-import subprocess
+import sys
 import time
 from pathlib import Path
 
 import jax
 import numpy as np
 
-from jaxhand.cli_track import image_extractor
-from jaxhand.features import features_from_pose
-from jaxhand.image import ImageConfig
-from jaxhand.render import RenderConfig, make_preset, render_frame
-from jaxhand.run import accuracy_summary
-from jaxhand.track import TrackConfig, Tracker
-from jaxhand.viz import plot_joint_angles
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-RESULTS = Path(__file__).parent / "results"
+from _common import RESULTS, environment, write_json  # noqa: E402
+
+from jaxhand.cli_track import image_extractor  # noqa: E402
+from jaxhand.features import features_from_pose  # noqa: E402
+from jaxhand.image import ImageConfig  # noqa: E402
+from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402
+from jaxhand.run import accuracy_summary  # noqa: E402
+from jaxhand.track import TrackConfig, Tracker  # noqa: E402
+from jaxhand.viz import plot_joint_angles  # noqa: E402
 
 # (sequence, front-end method, solver, steps per frame, frames): the documents' choice for each
 # experiment. Frames: each preset's motion sampled at 25 fps (10 fps for the DigitEyes ones).
@@ -87,16 +86,6 @@ def run(seq, images, extract, config: TrackConfig) -> dict:
     }
 
 
-def environment() -> dict:
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                                cwd=Path(__file__).parent).stdout.strip()
-    except OSError:
-        commit = ""
-    return {"jax": jax.__version__, "backend": jax.default_backend(), "cpu": platform.processor() or platform.machine(),
-            "cpus": os.cpu_count(), "python": platform.python_version(), "commit": commit}
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="12 frames per sequence, no JSON")
@@ -108,8 +97,8 @@ def main(argv=None) -> int:
     parser.add_argument("--size", default="320x240", help="image size WxH")
     parser.add_argument("--frames", type=int, help="frames per sequence (default: each experiment's own)")
     args = parser.parse_args(argv)
-    rows, out = [], {"environment": environment(), "sequences": {}}
-    RESULTS.mkdir(exist_ok=True)
+    rows, out = [], {"environment": {**environment(), "backend": jax.default_backend()}, "sequences": {}}
+    RESULTS.mkdir(parents=True, exist_ok=True)
     for name, method, solver, steps, frames in EXPERIMENTS:
         if args.only and name != args.only:
             continue
@@ -146,7 +135,7 @@ def main(argv=None) -> int:
               f"{r['fps_end_to_end']:7.1f}  {stages}")
     if not args.quick:
         path = RESULTS / ("tracking.json" if not args.only else f"tracking_{args.only}.json")
-        path.write_text(json.dumps(out, indent=2) + "\n")
+        write_json(out, path)
         print(f"wrote {path}")
     return 0
 
