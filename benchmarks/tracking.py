@@ -28,11 +28,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, environment, write_json  # noqa: E402
 
 from jaxhand.cli_track import image_extractor  # noqa: E402
-from jaxhand.features import features_from_pose  # noqa: E402
 from jaxhand.image import ImageConfig  # noqa: E402
 from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402
 from jaxhand.run import accuracy_summary  # noqa: E402
-from jaxhand.track import TrackConfig, Tracker  # noqa: E402
+from jaxhand.track import TrackConfig, Tracker, exact_extractor  # noqa: E402
 from jaxhand.viz import plot_joint_angles  # noqa: E402
 
 # (sequence, front-end method, solver, steps per frame, frames): the documents' choice for each
@@ -44,18 +43,6 @@ EXPERIMENTS = [
     ("two_camera_hand", "gaussian", "lm", 20, 100),           # DigitEyes §6.2: 27 DOF, two cameras
     ("mouse3d", "gaussian", "lm", 20, 150),                   # DigitEyes §6.1: 3D mouse, one camera
 ]
-
-
-def oracle_extractor(model, cameras, truth, noise_px=0.5, seed=0):
-    rng = np.random.default_rng(seed)
-    k = {"i": 0}
-
-    def extract(images, q_pred, state):
-        f = features_from_pose(model, cameras, truth[k["i"]], noise_px=noise_px, rng=rng)
-        k["i"] += 1
-        return f, state, {}
-
-    return extract
 
 
 def run(seq, images, extract, config: TrackConfig) -> dict:
@@ -113,7 +100,7 @@ def main(argv=None) -> int:
                  "robust_passes": config.robust_passes, "render_s": render_s}
         for label, extract in (
                 (method, image_extractor(seq.model, seq.cameras, ImageConfig(method=method))),
-                ("exact+0.5px", oracle_extractor(seq.model, seq.cameras, seq.q))):
+                ("exact+0.5px", exact_extractor(seq.model, seq.cameras, seq.q, noise_px=0.5))):
             r = run(seq, images, extract, config)
             entry[label] = {k: v for k, v in r.items() if not k.startswith("q_")}
             rows.append((name, label, solver, r))

@@ -31,7 +31,7 @@ run produces; nothing is tuned or selected per frame.
 
 **What it uses.** The public API only: `jaxhand.render` (`make_preset`, `render_frame`), `jaxhand.track`
 (`Tracker`, `TrackConfig`), `jaxhand.cli_track.image_extractor` (the image front end the tracker takes),
-`jaxhand.features.features_from_pose` (for the oracle), `jaxhand.run.accuracy_summary`, `jaxhand.project_pose` and
+`jaxhand.track.exact_extractor` (the oracle), `jaxhand.run.accuracy_summary`, `jaxhand.project_pose` and
 `jaxhand.viz.draw_view`, plus NumPy, OpenCV and matplotlib. The sequences are rendered deterministically and the
 oracle's noise comes from a seeded generator. It runs in about a minute on two CPU cores.
 """)
@@ -45,10 +45,10 @@ import numpy as np
 
 import jaxhand as jh
 from jaxhand.cli_track import image_extractor
-from jaxhand.features import features_from_pose
+
 from jaxhand.render import RenderConfig, make_preset, render_frame
 from jaxhand.run import accuracy_summary
-from jaxhand.track import TrackConfig, Tracker
+from jaxhand.track import TrackConfig, Tracker, exact_extractor
 from jaxhand.viz import draw_view, joint_groups
 
 # Show figures inline (importing jaxhand.viz selects matplotlib's non-interactive Agg backend).
@@ -60,14 +60,7 @@ OVERLAY_FRAMES = [1, 10, 20, 30, 40]  # 1-based, as in thesis fig. 6.1
 
 def oracle_extractor(seq, noise_px=0.5, seed=0):
     # Exact features of the true pose of each frame, with pixel noise: no image analysis at all.
-    rng, k = np.random.default_rng(seed), [0]
-
-    def extract(images, q_pred, state):
-        f = features_from_pose(seq.model, seq.cameras, seq.q[k[0]], noise_px=noise_px, rng=rng)
-        k[0] += 1
-        return f, state, {}
-
-    return extract
+    return exact_extractor(seq.model, seq.cameras, seq.q, noise_px=noise_px, seed=seed)
 
 
 def track(seq, images, extract, config):

@@ -32,7 +32,7 @@ the exact features of the true pose plus 0.5 px of seeded Gaussian noise, the bo
 alone. The numbers are whatever this run produces; nothing is tuned or selected per frame.
 
 **What it uses.** The public API only: `jaxhand.render` (`make_preset`, `render_frame`), `jaxhand.track`
-(`Tracker`, `TrackConfig`), `jaxhand.cli_track.image_extractor`, `jaxhand.features.features_from_pose` (oracle),
+(`Tracker`, `TrackConfig`), `jaxhand.cli_track.image_extractor`, `jaxhand.track.exact_extractor` (oracle),
 `jaxhand.run.accuracy_summary`, `jaxhand.mouse.mouse_state`, `jaxhand.project_pose` and `jaxhand.viz.draw_view`,
 plus NumPy, OpenCV and matplotlib. It runs in about half a minute on two CPU cores.
 """)
@@ -46,11 +46,11 @@ import numpy as np
 
 import jaxhand as jh
 from jaxhand.cli_track import image_extractor
-from jaxhand.features import features_from_pose
+
 from jaxhand.mouse import mouse_state
 from jaxhand.render import RenderConfig, make_preset, render_frame
 from jaxhand.run import accuracy_summary
-from jaxhand.track import TrackConfig, Tracker
+from jaxhand.track import TrackConfig, Tracker, exact_extractor
 from jaxhand.viz import draw_view
 
 # Show figures inline (importing jaxhand.viz selects matplotlib's non-interactive Agg backend).
@@ -69,14 +69,7 @@ print(f"mouse3d: {m.dof} DOF ({', '.join(m.q_names)}), {seq.n_frames} frames at 
 
 def oracle_extractor(seq, noise_px=0.5, seed=0):
     # Exact features of the true pose of each frame, with pixel noise: no image analysis at all.
-    rng, k = np.random.default_rng(seed), [0]
-
-    def extract(images, q_pred, state):
-        f = features_from_pose(seq.model, seq.cameras, seq.q[k[0]], noise_px=noise_px, rng=rng)
-        k[0] += 1
-        return f, state, {}
-
-    return extract
+    return exact_extractor(seq.model, seq.cameras, seq.q, noise_px=noise_px, seed=seed)
 
 
 def track(extract, config):
