@@ -18,15 +18,16 @@ Solvers, all on the same residuals (``jaxhand.residuals``, two points per link a
   Jacobian jitted once (model and camera baked in, features passed per call);
   ``xtol=1e-10, ftol=1e-12, gtol=1e-10``.
 
-Reported per solver and setting: success rate (max joint error < 1 deg), best-minimum rate
-(final cost within 1e-6 relative of the lowest cost any solver reached on that problem: the
-solver's own success when noise makes 1 deg unreachable), exact-fit rate (H < 1e-10, noise-free
-only), the median seconds per solve after compilation (each solve timed alone
-and blocked on; compile time = first call less the median, listed apart), median iterations
-(jaxhand: trial steps; scipy: Jacobian evaluations, or function evaluations for 'lm' with
-'2-point', where scipy counts no Jacobians). Batch throughput: N_BATCH problems (sigma 15 deg,
-0.5 px) with ``jaxhand.fit_batch`` (one vmapped call; it runs until its slowest problem stops)
-against a Python loop over scipy, and over ``jaxhand.fit``.
+Reported per solver and setting: success rate (max joint error < 1 deg); best-minimum rate
+(final cost within 1e-6 relative of the lowest cost any solver of the same kind, bounded or
+unbounded, reached on that problem: the solver's own success when noise makes 1 deg
+unreachable); exact-fit rate (H < 1e-10, noise-free only); the median seconds per solve after
+compilation (each solve timed alone and blocked on; compile time = first call less the
+median, listed apart); median iterations (jaxhand: trial steps; scipy: Jacobian evaluations,
+or function evaluations for 'lm' with '2-point', where scipy counts no Jacobians).
+Batch throughput: N_BATCH problems (sigma 15 deg, 0.5 px) with ``jaxhand.fit_batch`` (one
+vmapped call; it runs until its slowest problem stops) against a Python loop over scipy, and
+over ``jaxhand.fit``.
 Ambiguity of one view: how often a fit is exact (H < 1e-10) yet more than 1 deg from the truth,
 in the oblique and the front view, and which joints the view observes least (the predicted
 standard deviation of each joint under 0.5 px noise, ``sigma_px sqrt(diag (J^T J)^-1)`` at the
@@ -277,9 +278,13 @@ def main(argv=None) -> int:
                 res = run_scipy(sp, method, jac, Q, F, Q0)
                 res["compile_s"] = scipy_compile if jac == "jax" else 0.0
                 outs[f"scipy_{method}_{jac}"] = ("scipy", res)
-            best = np.min([o["cost"] for _, o in outs.values()], axis=0)   # lowest cost any solver found
+            # the lowest cost any solver of the same kind (bounded or not) found on each problem
+            bounded = {name: name == "bounded" or name.startswith(("scipy_trf", "scipy_dogbox")) for name in outs}
+            best = {b: np.min([o["cost"] for name, (_, o) in outs.items() if bounded[name] == b], axis=0)
+                    for b in (False, True)}
+            load = load_average()
             for name, (kind, o) in outs.items():
-                rows.append(summarise(name, kind, sigma, noise, o, Q, best))
+                rows.append(summarise(name, kind, sigma, noise, o, Q, best[bounded[name]]) | {"load_1min": load})
             print(f"  sigma {sigma:g} deg, noise {noise:g} px: done (load {load_average()})", flush=True)
 
     # best scipy per setting, and each solver's time ratio to it

@@ -9,6 +9,10 @@ stopping rules:
 - ``lm_fixed``: DigitEyes' constant diagonal conditioning, J^T J + mu I (:mod:`.constant_damping`);
 - ``lm``: optimistix's Levenberg-Marquardt, adaptive damping (:mod:`.levenberg_marquardt`);
 - ``bounded``: trust region that keeps q inside the joint limits (:mod:`.bounded_trust_region`).
+
+``gn``, ``gn_eta`` and ``lm_fixed`` are one damped, step-limited Gauss-Newton update with
+different numbers (:mod:`._damped`), so per model they compile once between them. Results carry
+a :class:`Status`; no NaN leaves a solve.
 """
 
 from ._config import FitConfig

@@ -50,8 +50,10 @@ def jacobian_once(fn: Callable) -> Callable:
     iteration (to build J for the linear solve, for the trust region's predicted reduction).
     With this rule the linearisation computes ``J = jax.jacfwd(fn)`` in the primal pass and
     every later application is the product ``J @ dy``: the kinematics and their derivative are
-    traced once per iteration instead of once per use, which roughly halves compile time.
-    The derivative with respect to ``args`` is not provided (the solvers never need it).
+    traced once per iteration instead of once per use (measured on hand21: the compile time of
+    ``lm`` fell from 5.0 to 3.0 s and of ``bounded`` from 5.4 to 3.8 s of CPU time).
+    The derivative with respect to ``args`` is not provided (the solvers never need it), so a
+    fit must not be differentiated with respect to its features through this function.
     """
 
     @jax.custom_jvp
