@@ -225,25 +225,32 @@ def null_space_joints(model, cam, Q, top=8):
 
 
 def plot(rows, path):
+    """Success rate (top) and best-minimum rate (bottom) against sigma, one panel per noise level."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(NOISES_PX), figsize=(6 * len(NOISES_PX), 4.5), sharey=True)
-    for ax, noise in zip(np.atleast_1d(axes), NOISES_PX):
-        for name in dict.fromkeys(r["solver"] for r in rows):
-            rs = sorted((r for r in rows if r["solver"] == name and r["noise_px"] == noise),
-                        key=lambda r: r["sigma_deg"])
-            if not rs:
-                continue
-            ax.plot([r["sigma_deg"] for r in rs], [100 * r["success_rate"] for r in rs],
-                    "-o" if rs[0]["kind"] == "jaxhand" else "--s", label=name, ms=4)
-        ax.set_title(f"{MODEL}, one oblique orthographic view, noise {noise} px")
-        ax.set_xlabel("start perturbation sigma (deg per joint)")
-        ax.grid(alpha=0.3)
-    np.atleast_1d(axes)[0].set_ylabel(f"success rate (%): max joint error < {SUCCESS_DEG} deg")
-    np.atleast_1d(axes)[-1].legend(fontsize=8, loc="lower left")
+    metrics = (("success_rate", f"success (%): max joint error < {SUCCESS_DEG} deg"),
+               ("best_minimum_rate", "reached the best minimum (%)"))
+    fig, axes = plt.subplots(len(metrics), len(NOISES_PX), figsize=(6 * len(NOISES_PX), 4.2 * len(metrics)),
+                             sharex=True, sharey=True, squeeze=False)
+    for row, (key, label) in enumerate(metrics):
+        for col, noise in enumerate(NOISES_PX):
+            ax = axes[row, col]
+            for name in dict.fromkeys(r["solver"] for r in rows):
+                rs = sorted((r for r in rows if r["solver"] == name and r["noise_px"] == noise),
+                            key=lambda r: r["sigma_deg"])
+                if rs:
+                    ax.plot([r["sigma_deg"] for r in rs], [100 * r[key] for r in rs],
+                            "-o" if rs[0]["kind"] == "jaxhand" else "--s", label=name, ms=4)
+            ax.set_title(f"{MODEL}, one oblique orthographic view, noise {noise:g} px", fontsize=10)
+            ax.grid(alpha=0.3)
+            if col == 0:
+                ax.set_ylabel(label)
+            if row == len(metrics) - 1:
+                ax.set_xlabel("start perturbation sigma (deg per joint)")
+    axes[0, 0].legend(fontsize=8, loc="lower left")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
