@@ -1,7 +1,7 @@
 """Shared solver parts: the state-space layout, a Gauss-Newton-type solver assembled from a
 descent and a search, and descent wrappers (retraction onto the state manifold, step cap).
 
-Every jaxhand solver is an :class:`GaussNewtonFamily`: optimistix's ``AbstractGaussNewton``
+Every jaxhand solver is a :class:`GaussNewtonFamily`: optimistix's ``AbstractGaussNewton``
 machinery (evaluate r and J, ask the search whether to accept, ask the descent for the next
 step) with the descent and the search chosen per solver, as optimistix composes its own
 ``GaussNewton`` and ``LevenbergMarquardt``.
