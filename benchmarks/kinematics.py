@@ -26,8 +26,9 @@ Batches of more than CHUNK poses are processed CHUNK poses at a time by every me
 Before timing, every method's pixels and Jacobian are compared with ``jax``'s and the run stops
 if NumPy or ``jax_geo`` differ by more than rounding error or finite differences by more than
 their truncation error; the differences are recorded next to the times. Times are medians of
-repeated samples after a warm-up call; the compile time of each jitted function (trace, lower and
-compile ahead of its first call) is reported separately.
+repeated samples after a warm-up call, taken in rounds that interleave all methods of a mode (so
+load from other processes hits them alike); the compile time of each jitted function (trace,
+lower and compile ahead of its first call) is reported separately.
 
 Run ``python benchmarks/kinematics.py`` (writes ``benchmarks/results/kinematics.json``) or
 ``python benchmarks/kinematics.py --quick`` for a smoke run (small batch, few repeats, no JSON
@@ -37,7 +38,9 @@ unless ``--out`` is given).
 from __future__ import annotations
 
 import argparse
+import gc
 import json
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -48,7 +51,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import REPO, RESULTS, block, environment, load_average, median_seconds  # noqa: E402
+from _common import REPO, RESULTS, block, environment, load_average  # noqa: E402
 
 import jaxhand as jh  # noqa: E402
 from jaxhand.check import autodiff_jacobian, geometric_jacobian, keypoint_pixels, keypoints  # noqa: E402
@@ -342,6 +345,40 @@ METHOD_ORDER = {"jax": 0, "jax_geo": 1, "jax_api": 2, "numpy": 3, "fd": 4}
 # Timing
 # ---------------------------------------------------------------------------------------------
 
+def interleaved_medians(fns: dict, *, min_sample_s: float, repeats: int, max_total_s: float) -> dict:
+    """Median seconds per call of each blocking function in ``fns``, sampled in interleaved rounds.
+
+    Like ``_common.median_seconds`` (warm-up, samples of at least ``min_sample_s``, the garbage
+    collector paused), but each round takes one sample of every function in turn, so a burst of
+    load from other processes on a shared machine falls on all methods of a comparison alike
+    rather than on whichever happened to be running. ``repeats`` rounds, fewer (at least 3) where
+    they would take longer than ``max_total_s``.
+    """
+    n = {}
+    round_s = 0.0
+    for key, fn in fns.items():
+        fn()  # warm-up
+        t0 = time.perf_counter()
+        fn()
+        t = time.perf_counter() - t0
+        n[key] = max(1, int(np.ceil(min_sample_s / max(t, 1e-9))))
+        round_s += n[key] * t
+    k = max(3, min(repeats, int(max_total_s / max(round_s, 1e-9))))
+    samples: dict = {key: [] for key in fns}
+    gc.collect()
+    gc.disable()
+    try:
+        for _ in range(k):
+            for key, fn in fns.items():
+                t0 = time.perf_counter()
+                for _ in range(n[key]):
+                    fn()
+                samples[key].append((time.perf_counter() - t0) / n[key])
+    finally:
+        gc.enable()
+    return {key: statistics.median(v) for key, v in samples.items()}
+
+
 def compile_seconds(jitted, *args) -> float:
     """Time to trace, lower and compile a jitted function for these arguments (the later call reuses it)."""
     t0 = time.perf_counter()
@@ -429,11 +466,12 @@ def bench_model(name: str, batches: tuple[int, ...], timing: dict, rng: np.rando
     rows = []
     for mode, calls, arg in [("single", single, {"jax": qj, "numpy": q})] + [
             (f"batch{b}", batch, {"jax": Qj[b], "numpy": Qs[b]}) for b in batches]:
-        for (task, method), f in calls.items():
-            x = arg["numpy"] if method == "numpy" else arg["jax"]
-            rows.append({"task": task, "model": name, "method": method, "mode": mode,
-                         "seconds": median_seconds(lambda f=f, x=x: f(x), **kw),
-                         "n_poses": x.shape[0] if x.ndim == 2 else 1,
+        # every method of this mode (both tasks) in one set of interleaved rounds
+        seconds = interleaved_medians({key: (lambda f=f, x=arg["numpy" if key[1] == "numpy" else "jax"]: f(x))
+                                       for key, f in calls.items()}, **kw)
+        for (task, method), t in seconds.items():
+            rows.append({"task": task, "model": name, "method": method, "mode": mode, "seconds": t,
+                         "n_poses": 1 if mode == "single" else int(mode.removeprefix("batch")),
                          "compile_s": compile_s.get((task, method, mode)), "max_abs_diff": errs[task, method]})
     return rows
 
@@ -486,9 +524,9 @@ def main(argv: list[str] | None = None) -> int:
                                                  "none for --quick)")
     args = parser.parse_args(argv)
     if args.quick:
-        batches, timing = (256,), {"min_sample_s": 0.002, "repeats": 3, "max_total_s": 0.05}
+        batches, timing = (256,), {"min_sample_s": 0.002, "repeats": 3, "max_total_s": 0.5}
     else:
-        batches, timing = (1024, 65536), {"min_sample_s": 0.02, "repeats": 9, "max_total_s": 3.0}
+        batches, timing = (1024, 65536), {"min_sample_s": 0.02, "repeats": 9, "max_total_s": 20.0}
     out = args.out if args.out is not None else (None if args.quick else DEFAULT_OUT)
 
     env = bench_environment()
