@@ -1,16 +1,17 @@
-"""Plots of joint angles over time (thesis figs. 6.2, 6.4, 6.6), with matplotlib's Agg backend."""
+"""Plots of joint angles over time (thesis figs. 6.2, 6.4, 6.6).
+
+Figures are built with matplotlib's object API (``matplotlib.figure.Figure``), which needs no
+display and leaves the user's pyplot backend alone (notebooks keep their inline figures).
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..model import Model  # noqa: E402
+from ..model import Model
 
 __all__ = ["plot_joint_angles", "joint_groups"]
 
@@ -35,7 +36,8 @@ def plot_joint_angles(model: Model, times_s, q_est, path: str | Path, *, q_truth
     t = np.asarray(times_s)
     groups = joint_groups(model)
     conv = np.where(model.is_angle, 180.0 / np.pi, 1.0)
-    fig, axes = plt.subplots(len(groups), 1, figsize=(8, 2.1 * len(groups)), sharex=True, squeeze=False)
+    fig = Figure(figsize=(8, 2.1 * len(groups)))
+    axes = fig.subplots(len(groups), 1, sharex=True, squeeze=False)
     for ax, (digit, idx) in zip(axes[:, 0], groups.items()):
         for n, i in enumerate(idx):
             color = f"C{n}"
@@ -54,5 +56,4 @@ def plot_joint_angles(model: Model, times_s, q_est, path: str | Path, *, q_truth
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
