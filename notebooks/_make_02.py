@@ -49,6 +49,7 @@ from scipy.optimize import least_squares
 
 import jaxhand as jh
 from jaxhand.examples import chapter3 as ch3
+from jaxhand.viz import plot_line
 from jaxhand.residuals import cost, make_residual_args, residuals
 from jaxhand.solve import features_from_poses
 
@@ -165,16 +166,6 @@ rr_features = ch3.thesis_features(examples["RR divergence"])
 project_all = jax.jit(jax.vmap(lambda q: jh.project_pose(rr_model, rr_camera, q)))
 
 
-def draw_line(ax, line, color, xlim, ylim):
-    a, b, rho = (float(v) for v in line)
-    if abs(b) > abs(a):
-        xs = np.array(xlim)
-        ax.plot(xs, (rho - a * xs) / b, color=color, lw=1.5)
-    else:
-        ys = np.array(ylim)
-        ax.plot((rho - b * ys) / a, ys, color=color, lw=1.5)
-
-
 fig, axes = plt.subplots(1, 2, figsize=(12, 6), layout="constrained")
 for ax, key in zip(axes, ("RR divergence", "RR eta=0.1")):
     k, q, H = history(key)
@@ -187,7 +178,7 @@ for ax, key in zip(axes, ("RR divergence", "RR eta=0.1")):
         ax.plot(*tips[i, 0], "*", color="magenta", alpha=shade[i], ms=8)
     xlim, ylim = (-6, 14), (-10, 10)
     for line, color in zip(np.asarray(rr_features.lines), ("blue", "black")):
-        draw_line(ax, line, color, xlim, ylim)
+        plot_line(ax, line, color, xlim, ylim)
     ax.plot(*np.asarray(rr_features.tips)[0], "s", mfc="none", color="black", ms=12, mew=2)
     for i in sorted({0, 1, 2, len(k) - 1}):
         ax.annotate(f"k={i}", tips[i, 0], xytext=(6, 4), textcoords="offset points", fontsize=8)

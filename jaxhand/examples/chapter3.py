@@ -42,6 +42,7 @@ from ..kinematics import _pose, link_points
 from ..model import Model, builtin_model
 from ..residuals import ResidualArgs, cost
 from ..solve import FitConfig, FitResult, fit
+from ..viz import plot_line
 
 __all__ = ["ThesisTable", "Example", "THESIS_TABLES", "EXAMPLES", "thesis_camera", "thesis_features",
            "run_example", "format_table", "main"]
@@ -219,16 +220,6 @@ def _pyplot():
     return plt
 
 
-def _draw_line(ax, line, color, xlim, ylim):
-    a, b, rho = (float(v) for v in line)
-    if abs(b) > abs(a):
-        xs = np.array(xlim)
-        ax.plot(xs, (rho - a * xs) / b, color=color, lw=1.5)
-    else:
-        ys = np.array(ylim)
-        ax.plot((rho - b * ys) / a, ys, color=color, lw=1.5)
-
-
 def plot_overlay(example: Example, result: FitResult, path: Path) -> Path:
     """Every iterate's links (red, magenta), link points (+) and tip (*) over the link features
     (blue, black lines) and the tip feature (black square); numbers are the iterations."""
@@ -264,7 +255,7 @@ def plot_overlay(example: Example, result: FitResult, path: Path) -> Path:
                         bbox=dict(boxstyle="square,pad=0.15", fc="white", ec="0.5", alpha=0.8))
     for li in range(model.n_links):
         if bool(feats.line_valid[li]):
-            _draw_line(ax, feats.lines[li], feature_colors[li % 2], (lo[0], hi[0]), (lo[1], hi[1]))
+            plot_line(ax, feats.lines[li], feature_colors[li % 2], (lo[0], hi[0]), (lo[1], hi[1]))
     ax.plot(*np.asarray(feats.tips)[0], "s", mfc="none", color="black", ms=12, mew=2)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(hi[1], lo[1])   # image convention: y down

@@ -4,6 +4,7 @@ from ._draw import draw_view as draw_view
 from ._draw import sketch_model as sketch_model
 from ._plots import joint_groups as joint_groups
 from ._plots import plot_joint_angles as plot_joint_angles
+from ._plots import plot_line as plot_line
 from ._video import VideoWriter as VideoWriter
 
-__all__ = ["draw_view", "sketch_model", "plot_joint_angles", "joint_groups", "VideoWriter"]
+__all__ = ["draw_view", "sketch_model", "plot_joint_angles", "joint_groups", "plot_line", "VideoWriter"]

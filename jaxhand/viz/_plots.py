@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 
 from ..model import Model
 
-__all__ = ["plot_joint_angles", "joint_groups"]
+__all__ = ["plot_joint_angles", "joint_groups", "plot_line"]
 
 
 def joint_groups(model: Model) -> dict[str, list[int]]:
@@ -57,3 +57,15 @@ def plot_joint_angles(model: Model, times_s, q_est, path: str | Path, *, q_truth
     path = Path(path)
     fig.savefig(path, dpi=110)
     return path
+
+
+def plot_line(ax, line, color, xlim, ylim, lw: float = 1.5) -> None:
+    """Draw the image line a x + b y = rho (a feature's ``(a, b, rho)``) across the box ``xlim`` x ``ylim``
+    on matplotlib axes, solving for y when the line is closer to horizontal and for x otherwise."""
+    a, b, rho = (float(v) for v in line)
+    if abs(b) > abs(a):
+        xs = np.array(xlim, float)
+        ax.plot(xs, (rho - a * xs) / b, color=color, lw=lw)
+    else:
+        ys = np.array(ylim, float)
+        ax.plot((rho - b * ys) / a, ys, color=color, lw=lw)
