@@ -252,6 +252,11 @@ class ImageConfig:
         tips: tip features.
         template_min_visible: a view updates a link's template only when at least this share of
             the link's outline is visible (and then only the samples that show it).
+        template_recentre: re-centre every new template on the axis the template itself shows
+            (the midpoint of its two Gaussian-derivative boundaries, a line per link), so a
+            template taken at a slightly wrong pose does not carry that error into the next
+            frames' matches (template drift, which refreshing at each solved pose otherwise
+            accumulates). A link whose boundaries cannot be found keeps its template uncentred.
     """
 
     method: str = "wssd"
@@ -261,6 +266,7 @@ class ImageConfig:
     lines: LineConfig = LineConfig()
     tips: TipConfig = TipConfig()
     template_min_visible: float = 0.25
+    template_recentre: bool = True
 
     def __post_init__(self):
         from .searches import SEARCH_NAMES

@@ -21,6 +21,7 @@ from collections.abc import Sequence
 
 import jax.numpy as jnp
 import numpy as np
+import shapely
 
 from .._errors import InputError
 from ..camera import Perspective, as_rig
@@ -29,6 +30,7 @@ from ..kinematics import project_pose, validate_q
 from ..model import Model
 from ._config import ImageConfig
 from ._lines import axial_line, line_params, offset_towards, ransac_pca
+from ._regression import plls
 from ._sampling import as_grey, sample_profiles
 from ._state import ImageState
 from ._trackers import LinkSamplers, TipSamplers, place_link_samplers, place_tip_samplers
@@ -230,10 +232,92 @@ def _tips(grey: np.ndarray, model: Model, obs: _Observation, line_ok: np.ndarray
     edge = centre + along[:, None] * ts.v0
     tip = edge - ts.radius_px[:, None] * ts.v0
     seen = window_masks(obs.visibility.windows[tl], tip[:, None, :])[:, 0]
+    # Past the tip boundary there must be background: over another link the boundary is weak
+    # or missing, and the strongest derivative lies elsewhere (thesis §4.4 assumes a clear tip).
+    beyond = tip[:, None, :] + (ts.radius_px[:, None] * np.array([1.1, 1.4]))[..., None] * ts.v0[:, None, :]
+    seen &= np.all(_off_other_links(obs, beyond, tl), axis=-1)
     valid = (s.ok[tl] & found & (strength >= tc.min_strength) & (strength > 0) & seen
              & (obs.visibility.visible_share[tl] >= config.lines.min_visible) & np.all(np.isfinite(tip), -1))
     return (np.where(valid[:, None], tip, 0.0), valid, ts, np.where(valid[:, None], edge, np.nan),
             np.where(valid, strength, 0.0))
+
+
+def _seen_axis_offsets(obs: _Observation, config: ImageConfig, deadband: float = 0.75) -> np.ndarray:
+    """Where each profile shows its link's axis, relative to the profile centre (samples).
+
+    Both boundaries are the Gaussian-derivative peaks of each half profile (§11.1.2); a profile
+    counts when both are found, their distance is the predicted width within 20 % and the link's
+    window covers the profile's middle (no nearer finger across it). The midpoints of one link
+    are smoothed by a PLLS line along the link (the phalanx is straight), refitted twice without
+    the midpoints more than a sample off it; a link left with fewer than half of its profiles
+    (at least three) gets 0 everywhere (no correction), and so does a link whose line stays
+    within ``deadband`` samples of the centre.
+
+    Returns:
+        (links, samplers) offsets in samples.
+    """
+    sc, search = config.samplers, config.search
+    L, M, N = obs.values.shape
+    profiles = Profiles(values=obs.values, usable=obs.usable, window=obs.window, centre=sc.centre,
+                        radius=sc.samples_per_radius, spacing_px=obs.samplers.spacing_px)
+    edges = search_named("gaussian")(profiles, search)
+    width = edges.pos[..., 1] - edges.pos[..., 0]
+    r = sc.samples_per_radius
+    core = np.abs(np.arange(N) - sc.centre) <= 0.7 * r
+    covered = np.all(obs.window[..., core], axis=-1)
+    ok = (edges.valid.all(-1) & (np.abs(width - 2 * r) <= 0.4 * r) & covered & obs.samplers.ok[:, None]
+          & _against_background(obs))
+    mid = np.where(ok, edges.pos.mean(-1) - sc.centre, 0.0)
+    x = np.arange(M, dtype=float)
+    for _ in range(2):  # refit without the midpoints more than one sample off the line
+        c, fit_ok = plls(x, mid, ok)
+        ok &= np.abs(mid - (c[:, 0, None] + c[:, 1, None] * x)) <= 1.0
+    c, fit_ok = plls(x, mid, ok)
+    use = fit_ok & (ok.sum(-1) >= max(3, M // 2))
+    line = c[:, 0, None] + c[:, 1, None] * x
+    # Shading shifts the two boundaries unequally by a fraction of a sample; correct only a
+    # template that is off by more than that (drift), so a well placed one stays as it is.
+    use &= np.max(np.abs(line), axis=-1) > deadband
+    return np.where(use[:, None], line, 0.0)
+
+
+def _off_other_links(obs: _Observation, points: np.ndarray, links: np.ndarray | None = None) -> np.ndarray:
+    """True where a point of link ``links[i]`` (``points[i, ...]``) lies outside the outline of every
+    other link: other fingers, and also the neighbouring phalanges of its own finger, which near
+    a bent joint widen the silhouette on the inner side."""
+    outlines = obs.visibility.outlines
+    L = len(outlines)
+    links = np.arange(L) if links is None else np.asarray(links, int)
+    present = ~shapely.is_empty(outlines)
+    others = np.array([shapely.union_all(outlines[present & (np.arange(L) != i)]) for i in links], dtype=object)
+    return ~window_masks(others, points)
+
+
+def _against_background(obs: _Observation, reach: tuple[float, ...] = (1.1, 1.25, 1.4)) -> np.ndarray:
+    """(links, samplers) the points ``reach`` radii either side of a profile's centre lie off every
+    other link's outline (:func:`_off_other_links`), so the profile's two boundaries are the
+    link's own, seen against the background."""
+    s = obs.samplers
+    at = np.concatenate([-np.asarray(reach), np.asarray(reach)])
+    off = (s.radius_px[:, None] * at)[:, None, :, None] * s.normal[:, None, None, :]
+    return np.all(_off_other_links(obs, s.centres[:, :, None, :] + off), axis=-1)
+
+
+def _shift_profiles(values: np.ndarray, mask: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Profiles resampled so the sample at ``offsets`` (per profile) lands on the centre:
+    ``out(j) = values(j + offset)`` by linear interpolation; a sample is kept where both of its
+    neighbours were in ``mask`` and inside the profile."""
+    n = values.shape[-1]
+    pos = np.arange(n) + offsets[..., None]
+    k0 = np.floor(pos).astype(int)
+    f = pos - k0
+    inside = (k0 >= 0) & (k0 + 1 <= n - 1)
+    a, b = np.clip(k0, 0, n - 1), np.clip(k0 + 1, 0, n - 1)
+    va, vb = np.take_along_axis(values, a, -1), np.take_along_axis(values, b, -1)
+    exact = f == 0.0  # a whole-sample shift needs one neighbour only (also covers the last sample)
+    keep = np.where(exact, np.take_along_axis(mask, a, -1) & (k0 >= 0) & (k0 <= n - 1),
+                    inside & np.take_along_axis(mask, a, -1) & np.take_along_axis(mask, b, -1))
+    return np.where(keep, (1.0 - f) * va + f * vb, 0.0), keep
 
 
 def _take_templates(obs: _Observation, config: ImageConfig, values_stored: np.ndarray, mask_stored: np.ndarray,
@@ -242,15 +326,19 @@ def _take_templates(obs: _Observation, config: ImageConfig, values_stored: np.nd
 
     A link qualifies when it has samplers and at least ``template_min_visible`` of it is visible;
     its samples that show the link overwrite the stored ones, the others keep theirs. With
-    ``only_missing`` only links without any template take one.
+    ``only_missing`` only links without any template take one. With
+    ``config.template_recentre`` the new profiles are first shifted so the axis they show sits on
+    the template's centre (:func:`_seen_axis_offsets`).
     """
     share = obs.visibility.visible_share
-    seen = obs.window & obs.usable
+    values, seen = obs.values, obs.window & obs.usable
+    if config.template_recentre:
+        values, seen = _shift_profiles(values, seen, _seen_axis_offsets(obs, config))
     take = obs.samplers.ok & (share >= config.template_min_visible)
     if only_missing:
         take &= ~mask_stored.any(axis=(1, 2))
     new = take[:, None, None] & seen
-    return np.where(new, obs.values, values_stored), mask_stored | new
+    return np.where(new, values, values_stored), mask_stored | new
 
 
 def _prepare(images, model: Model, cameras, q, config: ImageConfig | None, name: str):
