@@ -42,7 +42,7 @@ from .kinematics import _pose, link_points
 from .model import Model
 
 __all__ = ["DEFAULT_LINK_FRACTIONS", "ResidualArgs", "make_residual_args", "residuals", "cost",
-           "residual_jacobian", "residual_labels", "n_residuals"]
+           "residual_jacobian", "residuals_and_jacobian", "point_jacobian", "residual_labels", "n_residuals"]
 
 #: Default fractions along each link axis (0 = its joint, 1 = its end) of the link residual points.
 DEFAULT_LINK_FRACTIONS = (0.25, 0.75)
@@ -82,19 +82,31 @@ def make_residual_args(model: Model, cameras, features, link_fractions=DEFAULT_L
 
 
 def _camera_residuals(model: Model, camera, feats: Features, pose, fractions) -> Float[Array, " r"]:
-    dtype = pose.link_start.dtype
-    # Tips: replace masked observations by 0 before subtracting, so NaN there cannot leak
-    # into the result or (through 0 * NaN) into its derivative.
     tips_px, _ = camera.project(pose.tips)                                        # (tips, 2)
+    pts_px, _ = camera.project(link_points(pose, fractions))                      # (links, K, 2)
+    return _stack_residuals(feats, tips_px, pts_px)
+
+
+def _masked(feats: Features, dtype):
+    """The features with masked slots replaced (before any arithmetic) and sqrt of the weights:
+    tip_valid (tips, 1), tip_obs (tips, 2), sqrt_tip_w (tips,), lines (links, 3), sqrt_line_w (links,).
+
+    A masked tip observation becomes 0, so NaN there cannot leak into the residuals or (through
+    0 * NaN) into their derivative; a masked line becomes (0, 0, 0), whose residual is exactly 0
+    at every q."""
     tip_valid = feats.tip_valid[:, None]
     tip_obs = jnp.where(tip_valid, feats.tips, 0.0).astype(dtype)
     tip_w = jnp.where(feats.tip_valid, feats.tip_weight, 0.0).astype(dtype)
-    r_tip = jnp.where(tip_valid, tips_px - tip_obs, 0.0) * jnp.sqrt(tip_w)[:, None]
-    # Links: a masked line becomes (0, 0, 0), whose residual is exactly 0 at every q.
-    pts_px, _ = camera.project(link_points(pose, fractions))                      # (links, K, 2)
     lines = jnp.where(feats.line_valid[:, None], feats.lines, 0.0).astype(dtype)
     line_w = jnp.where(feats.line_valid, feats.line_weight, 0.0).astype(dtype)
-    r_link = (jnp.sum(lines[:, None, :2] * pts_px, axis=-1) - lines[:, None, 2]) * jnp.sqrt(line_w)[:, None]
+    return tip_valid, tip_obs, jnp.sqrt(tip_w), lines, jnp.sqrt(line_w)
+
+
+def _stack_residuals(feats: Features, tips_px, pts_px) -> Float[Array, " r"]:
+    """One camera's residual vector from its projected tips (tips, 2) and link points (links, K, 2)."""
+    tip_valid, tip_obs, sqrt_tip_w, lines, sqrt_line_w = _masked(feats, tips_px.dtype)
+    r_tip = jnp.where(tip_valid, tips_px - tip_obs, 0.0) * sqrt_tip_w[:, None]
+    r_link = (jnp.sum(lines[:, None, :2] * pts_px, axis=-1) - lines[:, None, 2]) * sqrt_line_w[:, None]
     return jnp.concatenate([r_tip.reshape(-1), r_link.reshape(-1)])
 
 
@@ -115,6 +127,105 @@ def cost(q: Float[Array, " nq"], args: ResidualArgs) -> Float[Array, ""]:
 def residual_jacobian(q: Float[Array, " nq"], args: ResidualArgs) -> Float[Array, "r nq"]:
     """dr/dq by forward-mode autodiff (thesis eqs. 3.6-3.8), px per q unit (jitted)."""
     return jax.jacfwd(residuals)(q, args)
+
+
+def _quat_rate(quat: Float[Array, 4]) -> Float[Array, "3 4"]:
+    """d omega / d quat for the rotation of the normalised quaternion (w, x, y, z): the spatial
+    angular velocity ``omega = 2 E(q/|q|) qdot / |q|`` (DigitEyes eq. 10; the normalisation's own
+    derivative is orthogonal to E's rows). A zero quaternion (mapped to the identity by the
+    kinematics, whatever its rate) gives 0."""
+    n = jnp.linalg.norm(quat)
+    # Guard: n = 0 would divide by zero; the safe denominator keeps both branches finite.
+    safe = jnp.where(n > 0, n, 1.0)
+    w, x, y, z = quat / safe
+    E = jnp.stack([jnp.stack([-x, w, -z, y]), jnp.stack([-y, z, w, -x]), jnp.stack([-z, -y, x, w])])
+    return jnp.where(n > 0, 2.0 * E / safe, 0.0)
+
+
+def point_jacobian(model: Model, q: Float[Array, " nq"], frames: Float[Array, "frames 4 4"],
+                   points: Float[Array, "p 3"], attached: np.ndarray) -> Float[Array, "p 3 nq"]:
+    """d p_world / d q of world points rigidly attached to frames, from the joint axes
+    (the geometric Jacobian, DigitEyes eqs. 8-10), mm per q unit.
+
+    Columns: a revolute joint j above the point's frame gives ``z_j x (p - o_j)``, a prismatic
+    one ``z_j`` (z_j and o_j: joint j's axis and origin in the world, from ``frames``); a free
+    base gives ``R_world_mount`` for its translation and ``[R_world_mount dω/dq_k] x (p - o_root)``
+    for its quaternion entries; a planar base its mount's x and y axes and
+    ``z_mount x (p - o_root)`` for its yaw.
+
+    Args:
+        frames: T_world_frame of every frame at q (``_pose(model, q).frames``).
+        attached: static (p,) index of the frame each point is attached to.
+    """
+    dtype = points.dtype
+    moving = np.array([f for f in range(model.n_frames) if model.q_index[f] >= 0], dtype=int)
+    J = jnp.zeros(points.shape + (model.n_q,), dtype)
+    if moving.size:
+        z, o = frames[moving, :3, 2], frames[moving, :3, 3]                           # (F, 3)
+        revolute = np.array([model.joint_kinds[f] == "revolute" for f in moving])
+        cols = jnp.where(revolute[None, :, None], jnp.cross(z[None], points[:, None] - o[None]), z[None])
+        above = model.ancestors[np.asarray(attached, dtype=int)][:, moving]           # (p, F), static
+        select = np.zeros((moving.size, model.n_q))                                   # frame -> q entry
+        select[np.arange(moving.size), np.array(model.q_index)[moving]] = 1.0
+        J = jnp.einsum("pfk,fq->pkq", cols * jnp.asarray(above, dtype)[..., None], jnp.asarray(select, dtype))
+    if model.base_kind == "fixed":
+        return J
+    from .kinematics import base_pose
+
+    R_mount = model.T_world_mount[:3, :3].astype(dtype)
+    r = points - base_pose(model, q)[:3, 3]                                          # (p, 3) from the root
+    n = points.shape[0]
+    if model.base_kind == "free":
+        omega = R_mount @ _quat_rate(q[:4])                                            # (3, 4)
+        J_quat = jnp.swapaxes(jnp.cross(omega.T[None], r[:, None]), 1, 2)             # (p, 3, 4)
+        base = jnp.concatenate([J_quat, jnp.broadcast_to(R_mount, (n, 3, 3))], axis=-1)
+    else:  # planar: x, y along the mount's axes, yaw about its z
+        yaw = jnp.cross(R_mount[:, 2][None], r)
+        base = jnp.stack([jnp.broadcast_to(R_mount[:, 0], (n, 3)), jnp.broadcast_to(R_mount[:, 1], (n, 3)), yaw],
+                         axis=-1)
+    return J + jnp.concatenate([base, jnp.zeros((n, 3, model.n_q - base.shape[-1]), dtype)], axis=-1)
+
+
+def _project_with_jacobian(camera, points: Float[Array, "p 3"]) -> tuple[Float[Array, "p 2"], Float[Array, "p 2 3"]]:
+    """Pixels of world points and d pixel / d p_world at each (forward-mode autodiff of the
+    camera alone: three tangents per point, exact for any camera, its depth clamp included)."""
+    def one(p):
+        px = camera.project(p)[0]
+        return px, px
+
+    J, px = jax.vmap(jax.jacfwd(one, has_aux=True))(points)
+    return px, J
+
+
+def residuals_and_jacobian(q: Float[Array, " nq"], args: ResidualArgs) -> tuple[Float[Array, " r"],
+                                                                                 Float[Array, "r nq"]]:
+    """:func:`residuals` and their Jacobian dr/dq from the geometric Jacobian of the residual
+    points (:func:`point_jacobian`) chained with each camera's pixel Jacobian.
+
+    Equal to ``jax.jacfwd(residuals)`` up to rounding, and cheaper: the kinematics are evaluated
+    once instead of carrying one tangent per q entry through every 4x4 product.
+    """
+    model = args.model
+    pose = _pose(model, q)
+    K = args.fractions.shape[0]
+    pts = link_points(pose, args.fractions)                                           # (links, K, 3)
+    points = jnp.concatenate([pose.tips, pts.reshape(-1, 3)])
+    link_frame = np.array(model.link_frame, dtype=int)
+    attached = np.concatenate([link_frame[np.array(model.tip_links, dtype=int)], np.repeat(link_frame, K)])
+    J_world = point_jacobian(model, q, pose.frames, points, attached)                 # (p, 3, nq)
+    nt, nl = model.n_tips, model.n_links
+    rs, Js = [], []
+    for cam, f in zip(args.cameras, args.features):
+        px, dpx = _project_with_jacobian(cam, points)
+        rs.append(_stack_residuals(f, px[:nt], px[nt:].reshape(nl, K, 2)))
+        tip_valid, _, sqrt_tip_w, lines, sqrt_line_w = _masked(f, px.dtype)
+        J_tip = jnp.where(tip_valid[..., None], dpx[:nt] @ J_world[:nt], 0.0) * sqrt_tip_w[:, None, None]
+        # d(a x + b y - rho): the line normal times the pixel Jacobian, per link point
+        normal_world = jnp.einsum("lc,lkcd->lkd", lines[:, :2], dpx[nt:].reshape(nl, K, 2, 3))
+        J_link = (jnp.einsum("lkd,lkdq->lkq", normal_world, J_world[nt:].reshape(nl, K, 3, -1))
+                  * sqrt_line_w[:, None, None])
+        Js += [J_tip.reshape(2 * nt, -1), J_link.reshape(nl * K, -1)]
+    return jnp.concatenate(rs), jnp.concatenate(Js)
 
 
 def n_residuals(model: Model, n_cameras: int, n_fractions: int) -> int:

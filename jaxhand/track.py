@@ -20,13 +20,16 @@ recompiles. Results are written frame by frame.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, Bool, Float, Int
 
 from ._errors import InputError
 from .camera import as_rig
@@ -60,6 +63,9 @@ class TrackConfig:
             seen at the solved pose as templates (when it keeps templates).
         hold_on_loss: on a lost frame, report the last good estimate and predict it standing
             still, rather than filtering the lost frame's solve into the state.
+        jacobian: how the solver computes the residual Jacobian (:attr:`jaxhand.FitConfig.jacobian`):
+            "geometric" (joint axes, DigitEyes eqs. 8-10; the default, several times cheaper on
+            CPU) or "autodiff" (``jax.jacfwd``); they agree to rounding.
     """
 
     solver: str = "lm"
@@ -73,6 +79,7 @@ class TrackConfig:
     robust_scale_px: float = 2.0
     refresh_templates: bool = True
     hold_on_loss: bool = True
+    jacobian: str = "geometric"
 
     def __post_init__(self):
         if not 0.0 <= self.theta <= 1.0:
@@ -82,6 +89,10 @@ class TrackConfig:
         if self.robust_passes < 0 or self.robust_scale_px <= 0:
             raise InputError(f"robust_passes must be >= 0 and robust_scale_px > 0, got {self.robust_passes}, "
                              f"{self.robust_scale_px}")
+        from .solve._config import JACOBIANS
+
+        if self.jacobian not in JACOBIANS:
+            raise InputError(f"jacobian must be one of {', '.join(JACOBIANS)}, got {self.jacobian!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,8 +133,8 @@ def confidence_of(rms_px: float, valid_share: float, config: TrackConfig) -> tup
     return float(conf if np.isfinite(conf) else 0.0), bool(lost)
 
 
-@eqx.filter_jit
-def _filter_step(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: bool):
+def _filter_update(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: bool
+                   ) -> tuple[Float[Array, " nq"], GHKState]:
     """g-h-k update with the measured q, then the prediction for the next frame (both clipped)."""
     if model.base_kind == "free":  # keep the measured quaternion in the prediction's hemisphere
         flip = jnp.sign(jnp.dot(q_meas[:4], ghk.x[:4]))
@@ -138,10 +149,11 @@ def _filter_step(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: b
     return filtered, GHKState(x=clip_q(model, nxt.x), v=nxt.v, a=nxt.a)
 
 
-@eqx.filter_jit
-def feature_errors(model: Model, cameras: tuple, features: tuple, q, fractions) -> tuple:
-    """Per camera, each link line's largest distance (px) to the model's link points and each tip's
-    distance (px) to the model's tip at state q (0 where a feature is invalid)."""
+#: :func:`_filter_update` on its own (jitted): the unfused reference of the tracker's filter stage.
+_filter_step = eqx.filter_jit(_filter_update)
+
+
+def _feature_errors(model: Model, cameras: tuple, features: tuple, q, fractions) -> tuple:
     pose = _pose(model, q)
     out = []
     for cam, f in zip(cameras, features):
@@ -155,8 +167,16 @@ def feature_errors(model: Model, cameras: tuple, features: tuple, q, fractions) 
     return tuple(out)
 
 
-def reweight(features: tuple, errors: tuple, scale_px: float) -> tuple:
-    """Features with Cauchy weights ``w / (1 + (e / scale)^2)`` from their residual errors."""
+@eqx.filter_jit
+def feature_errors(model: Model, cameras: tuple, features: tuple, q, fractions) -> tuple:
+    """Per camera, each link line's largest distance (px) to the model's link points and each tip's
+    distance (px) to the model's tip at state q (0 where a feature is invalid)."""
+    return _feature_errors(model, cameras, features, q, fractions)
+
+
+def reweight(features: tuple, errors: tuple, scale_px) -> tuple:
+    """Features with Cauchy weights ``w / (1 + (e / scale)^2)`` from their residual errors
+    (host or jitted code alike)."""
     out = []
     for f, (e_link, e_tip) in zip(features, errors):
         out.append(eqx.tree_at(lambda g: (g.line_weight, g.tip_weight), f,
@@ -169,6 +189,130 @@ def _valid_share(features: Sequence[Features]) -> float:
     valid = sum(int(np.sum(f.line_valid)) + int(np.sum(f.tip_valid)) for f in features)
     total = sum(f.line_valid.shape[-1] + f.tip_valid.shape[-1] for f in features)
     return valid / max(total, 1)
+
+
+class _StepNumbers(eqx.Module):
+    """The :class:`TrackConfig` numbers the jitted frame step reads (traced: new values reuse the
+    compiled program)."""
+
+    theta: Float[Array, ""]
+    dt_s: Float[Array, ""]
+    robust_scale_px: Float[Array, ""]
+    min_valid_share: Float[Array, ""]
+    max_rms_px: Float[Array, ""]
+
+
+class _StepOut(eqx.Module):
+    """Everything :meth:`Tracker.step` needs from one frame's solve and filter, fetched at once.
+
+    ``q_solved`` is the measurement the filter took (the prediction when the solve was not
+    finite); ``status`` is the last solve's :class:`~jaxhand.solve.Status` code.
+    """
+
+    q_solved: Float[Array, " nq"]
+    solved_ok: Bool[Array, ""]
+    cost: Float[Array, ""]
+    iterations: Int[Array, ""]
+    status: Int[Array, ""]
+    q_filtered: Float[Array, " nq"]
+    ghk: GHKState
+    rms_px: Float[Array, ""]
+    valid_share: Float[Array, ""]
+    lost: Bool[Array, ""]
+    features_ok: Bool[Array, ""]
+
+
+def _robust_solve(model: Model, rig: tuple, feats: tuple, q0, build, fit_config, scale_px, passes: int):
+    """Solve, then ``passes`` times reweight every feature by its error at the last solution
+    (Cauchy weights of the *original* weights, :func:`reweight`) and solve again from there.
+
+    The passes run in one ``lax.fori_loop`` so the solver is traced (and compiled) once; pass 0
+    keeps the original weights.
+    """
+    from .solve._fit import _fit_core
+
+    def one_pass(i, result):
+        errors = _feature_errors(model, rig, feats, result.q, fit_config.link_fractions)
+        weighted = reweight(feats, errors, scale_px)
+        weighted = jax.tree_util.tree_map(lambda a, b: jnp.where(i == 0, a, b), feats, weighted)
+        return _fit_core(model, rig, weighted, result.q, build, fit_config)
+
+    start = jax.eval_shape(lambda: _fit_core(model, rig, feats, q0, build, fit_config))
+    start = jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), start)
+    start = eqx.tree_at(lambda r: r.q, start, q0)
+    return jax.lax.fori_loop(0, passes + 1, one_pass, start)
+
+
+def _features_ok(feats: tuple) -> Bool[Array, ""]:
+    """The value checks of :func:`~jaxhand.features.validate_features` as one flag (valid lines
+    and tips finite, valid line normals of unit length, weights finite and >= 0), so the
+    tracker checks each frame's features inside its compiled step instead of on the host."""
+    ok = jnp.array(True)
+    for f in feats:
+        norm = jnp.linalg.norm(jnp.where(f.line_valid[:, None], f.lines[:, :2], 0.0), axis=-1)
+        ok = (ok & jnp.all(jnp.isfinite(f.lines) | ~f.line_valid[:, None])
+              & jnp.all(jnp.isfinite(f.tips) | ~f.tip_valid[:, None])
+              & jnp.all((jnp.abs(norm - 1.0) <= 1e-6 + 1e-5) | ~f.line_valid)   # np.allclose(norm, 1, atol=1e-6)
+              & jnp.all(jnp.isfinite(f.line_weight) & (f.line_weight >= 0))
+              & jnp.all(jnp.isfinite(f.tip_weight) & (f.tip_weight >= 0)))
+    return ok
+
+
+def _frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, build, fit_config,
+                numbers: _StepNumbers, passes: int, use_filter: bool, hold: bool) -> _StepOut:
+    """One frame after feature extraction, in one compiled program: the (robust) solve from the
+    prediction ``ghk.x``, the frame's score and loss flag, and the g-h-k update and prediction
+    (or, with ``hold`` on a lost frame, ``q_last`` held still), and the features' value check."""
+    q_pred = ghk.x
+    result = _robust_solve(model, rig, feats, q_pred, build, fit_config, numbers.robust_scale_px, passes)
+    ok = jnp.all(jnp.isfinite(result.q)) & jnp.isfinite(result.cost)
+    q_meas = jnp.where(ok, result.q, q_pred)
+    n_tips = sum(jnp.sum(f.tip_valid) for f in feats)
+    n_lines = sum(jnp.sum(f.line_valid) for f in feats)
+    n_res = jnp.maximum(1, 2 * n_tips + 2 * n_lines)
+    # Guard: the unused branch of a failed solve must stay finite.
+    rms = jnp.where(ok, jnp.sqrt(2.0 * jnp.where(ok, result.cost, 0.0) / n_res), jnp.inf)
+    total = sum(f.line_valid.shape[-1] + f.tip_valid.shape[-1] for f in feats)
+    share = (n_tips + n_lines) / max(total, 1)
+    lost = (share < numbers.min_valid_share) | (rms > numbers.max_rms_px) | ~jnp.isfinite(rms)
+    filtered, ghk_next = _filter_update(model, ghk, q_meas, numbers.theta, numbers.dt_s, use_filter)
+    if hold:
+        # A lost frame's solve fits stray features: hold the last good estimate still (zero
+        # velocity and acceleration) instead of letting the filter extrapolate it.
+        filtered = jnp.where(lost, q_last, filtered)
+        ghk_next = GHKState(x=jnp.where(lost, q_last, ghk_next.x), v=jnp.where(lost, 0.0, ghk_next.v),
+                            a=jnp.where(lost, 0.0, ghk_next.a))
+    return _StepOut(q_solved=q_meas, solved_ok=ok, cost=result.cost, iterations=result.iterations,
+                    status=result.status._value, q_filtered=filtered, ghk=ghk_next, rms_px=rms,
+                    valid_share=share, lost=lost, features_ok=_features_ok(feats))
+
+
+class _Static:
+    """A hashable handle on the static half of a pytree, hashed once: as a ``jax.jit`` static
+    argument it costs no tree traversal per call, and equal halves (trackers of the same model
+    structure and settings) share one compiled program."""
+
+    __slots__ = ("value", "_hash")
+
+    def __init__(self, value):
+        self.value = value
+        self._hash = hash(value)
+
+    def __hash__(self) -> int:
+        return self._hash
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, _Static) and (other.value is self.value or other.value == self.value)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _frame_jit(static: _Static, consts, feats: tuple, ghk: GHKState, q_last) -> _StepOut:
+    """:func:`_frame_step` with the tracker's constant arguments split once into ``consts``
+    (arrays: model numbers, cameras, solver config, settings) and ``static`` (structure).
+    ``eqx.filter_jit`` would partition the whole model on every call, which measured 0.3 ms
+    per frame (hand27, two cameras), more than a small model's solve."""
+    model, rig, build, fit_config, numbers, passes, use_filter, hold = eqx.combine(consts, static.value)
+    return _frame_step(model, rig, feats, ghk, q_last, build, fit_config, numbers, passes, use_filter, hold)
 
 
 class Tracker:
@@ -187,15 +331,41 @@ class Tracker:
 
     def __init__(self, model: Model, cameras, extract: Callable, config: TrackConfig | None = None,
                  dt_s: float = 1 / 25):
-        from .solve import FitConfig, fit
+        from .solve import FitConfig
+        from .solve._fit import _program
 
         self.model, self.cameras, self.extract = model, as_rig(cameras), extract
         self.config = config = TrackConfig() if config is None else config
         if dt_s <= 0:
             raise InputError(f"dt_s must be > 0, got {dt_s}")
         self.dt_s = float(dt_s)
-        self._fit = fit
-        self._fit_config = FitConfig(max_steps=config.max_steps)
+        self._fit_config = FitConfig(max_steps=config.max_steps, jacobian=config.jacobian)
+        # The compiled program's solver and its (solver-adjusted) config, checked once here.
+        self._build, self._program_config = _program(config.solver, self._fit_config)
+        self._numbers = _StepNumbers(*(jnp.asarray(float(v)) for v in (
+            config.theta, self.dt_s, config.robust_scale_px, config.min_valid_share, config.max_rms_px)))
+        # The jitted step's constant arguments, split once into arrays and a static handle
+        # (one per value of the hold flag).
+        self._consts, self._static = None, {}
+        for hold in (False, True):
+            consts, static = eqx.partition((model, self.cameras, self._build, self._program_config, self._numbers,
+                                            config.robust_passes, config.filter, hold), eqx.is_array)
+            self._consts, self._static[hold] = consts, _Static(static)
+
+    def _checked_shapes(self, features) -> tuple[Features, ...]:
+        """The front end's features as a tuple, after the (cheap, host-side) count and shape
+        checks; their values are checked inside the compiled step."""
+        from .features import validate_features
+
+        feats = (features,) if isinstance(features, Features) else tuple(features)
+        shapes = ((self.model.n_links, 3), (self.model.n_links,), (self.model.n_links,), (self.model.n_tips, 2),
+                  (self.model.n_tips,), (self.model.n_tips,))
+        if len(feats) != len(self.cameras) or any(
+                not isinstance(f, Features) or (np.shape(f.lines), np.shape(f.line_valid), np.shape(f.line_weight),
+                                                np.shape(f.tips), np.shape(f.tip_valid), np.shape(f.tip_weight))
+                != shapes for f in feats):
+            return validate_features(self.model, self.cameras, feats)   # raises, naming the problem
+        return feats
 
     def init(self, q0, image_state=None) -> TrackState:
         """The state before the first frame: the filter sits at q0 with zero velocity."""
@@ -204,42 +374,35 @@ class Tracker:
 
     def step(self, state: TrackState, images: Sequence[np.ndarray], frame: int = 0, time_s: float = 0.0
              ) -> tuple[TrackState, StepReport]:
-        """Process one frame (one image per camera)."""
+        """Process one frame (one image per camera).
+
+        After the image front end, the solve (with its robust passes), the frame's score and the
+        filter run as one compiled program whose results come back in one transfer; the timings
+        ``solve`` (that program) and ``filter`` (scoring and report on the host) split it.
+        """
+        from .features import validate_features
+        from .solve import STATUS_NAMES
+        from .solve._fit import _as_arrays
+
         if len(images) != len(self.cameras):
             raise InputError(f"expected one image per camera ({len(self.cameras)}), got {len(images)}")
         t0 = time.perf_counter()
         q_pred = state.ghk.x
         features, image_state, diag = self.extract(images, q_pred, state.image_state)
         t1 = time.perf_counter()
-        result = self._fit(self.model, self.cameras, features, q_pred, solver=self.config.solver,
-                           config=self._fit_config)
-        weighted = features
-        for _ in range(self.config.robust_passes):
-            errors = feature_errors(self.model, self.cameras, tuple(features), result.q,
-                                    self._fit_config.link_fractions)
-            weighted = reweight(tuple(features), errors, self.config.robust_scale_px)
-            result = self._fit(self.model, self.cameras, weighted, result.q, solver=self.config.solver,
-                               config=self._fit_config)
-        q_solved = np.asarray(result.q)
-        cost = float(result.cost)
+        feats = _as_arrays(self._checked_shapes(features))
+        hold = self.config.hold_on_loss and state.q_last is not None
+        out = _frame_jit(self._static[hold], self._consts, feats, state.ghk, state.q_last if hold else q_pred)
+        ghk_next = out.ghk
+        out = jax.tree_util.tree_map(np.asarray, jax.block_until_ready(eqx.filter(out, eqx.is_array)))
         t2 = time.perf_counter()
-        ok = bool(np.all(np.isfinite(q_solved))) and np.isfinite(cost)
-        q_meas = q_solved if ok else np.asarray(q_pred)
-        n_res = max(1, 2 * sum(int(np.sum(f.tip_valid)) for f in features)
-                    + 2 * sum(int(np.sum(f.line_valid)) for f in features))
-        rms = float(np.sqrt(2.0 * cost / n_res)) if ok else float("inf")
-        share = _valid_share(features)
-        conf, lost = confidence_of(rms, share, self.config)
-        if lost and self.config.hold_on_loss and state.q_last is not None:
-            # A lost frame's solve fits stray features: hold the last good estimate still
-            # (zero velocity and acceleration) instead of letting the filter extrapolate it.
-            filtered = np.asarray(state.q_last)
-            ghk_next = GHKState(x=jnp.asarray(filtered), v=jnp.zeros_like(state.ghk.v), a=jnp.zeros_like(state.ghk.a))
-        else:
-            filtered, ghk_next = _filter_step(self.model, state.ghk, jnp.asarray(q_meas),
-                                              jnp.asarray(self.config.theta), jnp.asarray(self.dt_s),
-                                              self.config.filter)
-            filtered = np.asarray(filtered)
+        if not out.features_ok:
+            validate_features(self.model, self.cameras, features)   # raises, naming camera and field
+            raise InputError("features: a value check failed (see jaxhand.features.validate_features)")
+        ok, rms, share, lost = bool(out.solved_ok), float(out.rms_px), float(out.valid_share), bool(out.lost)
+        conf, _ = confidence_of(rms, share, self.config)
+        cost = float(out.cost) if ok else float("nan")
+        q_meas, filtered = out.q_solved, out.q_filtered
         t3 = time.perf_counter()
         timings = {"features": t1 - t0, "solve": t2 - t1, "filter": t3 - t2}
         refresh = getattr(self.extract, "refresh", None)
@@ -250,12 +413,11 @@ class Tracker:
         if isinstance(diag, dict) and "timings_s" in diag:  # the front end's own split (e.g. visibility)
             timings.update({f"features.{k}": v for k, v in diag["timings_s"].items()})
         report = StepReport(frame=frame, time_s=time_s, q_pred=np.asarray(q_pred), q_solved=q_meas,
-                            q_filtered=filtered, cost=cost if ok else float("nan"), rms_px=rms,
-                            iterations=int(result.iterations), status=str(result.status_name()), valid_share=share,
-                            confidence=conf, lost=lost, timings_s=timings, diagnostics=diag)
+                            q_filtered=filtered, cost=cost, rms_px=rms, iterations=int(out.iterations),
+                            status=STATUS_NAMES[int(out.status)], valid_share=share, confidence=conf, lost=lost,
+                            timings_s=timings, diagnostics=diag)
         return TrackState(ghk=ghk_next, image_state=image_state, frames_done=state.frames_done + 1,
                           q_last=filtered), report
-
 
 
 def exact_extractor(model: Model, cameras, truth, *, noise_px: float = 0.5, seed: int = 0) -> Callable:

@@ -43,15 +43,21 @@ class _WithAux(eqx.Module):
         return self.fn(y, args), None
 
 
-def jacobian_once(fn: Callable) -> Callable:
+def jacobian_once(fn: Callable, jac: Callable | None = None) -> Callable:
     """``fn(y, args)`` whose forward-mode derivative builds the whole Jacobian once.
 
     optimistix linearises the residuals and then applies the linearisation several times per
     iteration (to build J for the linear solve, for the trust region's predicted reduction).
-    With this rule the linearisation computes ``J = jax.jacfwd(fn)`` in the primal pass and
-    every later application is the product ``J @ dy``: the kinematics and their derivative are
-    traced once per iteration instead of once per use (measured on hand21: the compile time of
-    ``lm`` fell from 5.0 to 3.0 s and of ``bounded`` from 5.4 to 3.8 s of CPU time).
+    With this rule the linearisation computes J in the primal pass and every later application
+    is the product ``J @ dy``: the kinematics and their derivative are traced once per iteration
+    instead of once per use (measured on hand21: the compile time of ``lm`` fell from 5.0 to
+    3.0 s and of ``bounded`` from 5.4 to 3.8 s of CPU time).
+
+    Args:
+        fn: the residuals ``fn(y, args) -> r``.
+        jac: optional ``jac(y, args) -> (r, J)``, the residuals and their Jacobian together
+            (e.g. :func:`jaxhand.residuals.residuals_and_jacobian`); default ``jax.jacfwd(fn)``.
+
     The derivative with respect to ``args`` is not provided (the solvers never need it), so a
     fit must not be differentiated with respect to its features through this function.
     """
@@ -64,7 +70,10 @@ def jacobian_once(fn: Callable) -> Callable:
     def f_jvp(primals, tangents):
         y, args = primals
         dy = tangents[0]
-        J, r = jax.jacfwd(lambda y_: (fn(y_, args),) * 2, has_aux=True)(y)
+        if jac is None:
+            J, r = jax.jacfwd(lambda y_: (fn(y_, args),) * 2, has_aux=True)(y)
+        else:
+            r, J = jac(y, args)
         return r, J @ dy
 
     return f
@@ -75,8 +84,11 @@ def _half_sumsq(r):
 
 
 def solve_least_squares(fn: Callable, solver: GaussNewtonFamily, q0: Float[Array, " nq"], args,
-                        space: StateSpace, config: FitConfig) -> FitResult:
+                        space: StateSpace, config: FitConfig, *, jac: Callable | None = None) -> FitResult:
     """Minimise ``H(q) = 1/2 ||fn(q, args)||^2`` from ``q0`` with ``solver`` (traceable, not jitted).
+
+    ``jac(q, args) -> (r, J)``, when given, supplies the residuals with their Jacobian (see
+    :func:`jacobian_once`); otherwise J is ``jax.jacfwd(fn)``.
 
     Stops at the first of: the step rule, the cost rule (:mod:`._stopping`), a non-finite
     iterate, the divergence guard, or ``config.max_steps`` iterations. Then:
@@ -86,7 +98,7 @@ def solve_least_squares(fn: Callable, solver: GaussNewtonFamily, q0: Float[Array
     - converged: ``ok``, or ``singular`` when J at the result has rank < ``space.dof``;
     - otherwise ``max_steps`` with the last iterate.
     """
-    f = _WithAux(jacobian_once(fn))
+    f = _WithAux(jacobian_once(fn, jac))
     options: dict = {}
     tags: frozenset = frozenset()
     f_struct = jax.eval_shape(fn, q0, args)

@@ -14,7 +14,7 @@ from ..camera import as_rig
 from ..features import Features, validate_features
 from ..kinematics import validate_q
 from ..model import Model
-from ..residuals import ResidualArgs, residuals
+from ..residuals import ResidualArgs, residuals, residuals_and_jacobian
 from ._config import FitConfig, check_config
 from ._damped import make_damped_gauss_newton
 from ._driver import solve_least_squares
@@ -61,7 +61,8 @@ def _fit_core(model: Model, rig: tuple, feats: tuple, q0, build: _Builder, confi
     if build is make_bounded_trust_region:   # every iterate inside the limits, the start included
         q0 = space.interior(q0)
     args = ResidualArgs(model=model, cameras=rig, features=feats, fractions=config.link_fractions)
-    return solve_least_squares(residuals, build(config, space), q0, args, space, config)
+    jac = residuals_and_jacobian if config.jacobian == "geometric" else None
+    return solve_least_squares(residuals, build(config, space), q0, args, space, config, jac=jac)
 
 
 _DEFAULT_CONFIG = FitConfig()

@@ -1,0 +1,215 @@
+"""The tracker's fused per-frame program and the geometric residual Jacobian it solves with.
+
+- the fused step (solve, robust passes, filter in one compiled program) gives what the unfused
+  sequence of public calls gives (fit, feature_errors, reweight, fit, ..., the g-h-k step);
+- ``residuals_and_jacobian`` equals ``jax.jacfwd(residuals)`` (and central differences) on
+  random poses of fixed, free and planar bases, with orthographic and perspective cameras,
+  weights, masked slots holding NaN, points behind a perspective camera and a zero quaternion;
+- no recompilation across frames, nor for a second tracker of the same structure;
+- bad features still raise a clear InputError from ``Tracker.step``.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import CompileCounter, fit_camera
+
+import jaxhand as jh
+from jaxhand.camera import look_at_rotation
+from jaxhand.check import central_difference_jacobian
+from jaxhand.features import Features, features_from_pose
+from jaxhand.render import make_preset
+from jaxhand.residuals import make_residual_args, residuals, residuals_and_jacobian
+from jaxhand.solve import FitConfig
+from jaxhand.track import TrackConfig, Tracker, _filter_step, exact_extractor, feature_errors, reweight
+
+_jacfwd = eqx.filter_jit(jax.jacfwd(residuals))
+_geometric = eqx.filter_jit(residuals_and_jacobian)
+_residuals = eqx.filter_jit(residuals)
+
+
+def _rig(model):
+    ortho = fit_camera(model, R=look_at_rotation([1.0, -0.5, -2.0], [0, 0, 0]))
+    persp = jh.Perspective.look_at([80.0, -60.0, -500.0], [0.0, 0.0, 0.0])
+    return ortho, persp
+
+
+def _noisy_features(model, rig, q, rng):
+    """Noisy features of q with random weights, one line and one tip masked (NaN inside)."""
+    out = []
+    for f in features_from_pose(model, rig, q, noise_px=1.0, rng=rng):
+        lines = np.array(f.lines)
+        tips = np.array(f.tips)
+        lv, tv = np.array(f.line_valid), np.array(f.tip_valid)
+        lv[0], tv[-1] = False, False
+        lines[0], tips[-1] = np.nan, np.nan
+        out.append(Features(lines=jnp.asarray(lines), line_valid=jnp.asarray(lv),
+                            line_weight=jnp.asarray(rng.uniform(0.2, 3.0, model.n_links)), tips=jnp.asarray(tips),
+                            tip_valid=jnp.asarray(tv), tip_weight=jnp.asarray(rng.uniform(0.2, 3.0, model.n_tips))))
+    return tuple(out)
+
+
+@pytest.mark.parametrize("name", ["two_fingers", "hand21", "hand27", "mouse3d"])
+def test_geometric_jacobian_equals_jacfwd(name):
+    m = jh.builtin_model(name)
+    rng = np.random.default_rng(5)
+    rig = _rig(m)
+    poses = jh.random_q(m, rng, 6)
+    poses[0] = np.asarray(m.q_upper)                         # at the limits
+    if m.base_kind == "free":
+        poses[0, :4] = [0.0, 0.0, 0.0, 1.0]
+        poses[1, :4] = [np.cos(1.55), np.sin(1.55), 0.0, 0.0]  # base rotated near pi
+        poses[2, :4] *= 3.0                                     # not normalised
+    worst, worst_r = 0.0, 0.0
+    for k, q in enumerate(poses):   # one orthographic and one perspective camera
+        args = make_residual_args(m, rig, _noisy_features(m, rig, poses[(k + 1) % len(poses)], rng), (0.1, 0.5, 0.9))
+        J_ad = np.asarray(_jacfwd(jnp.asarray(q), args))
+        r, J = (np.asarray(x) for x in _geometric(jnp.asarray(q), args))
+        assert np.all(np.isfinite(J)) and J.shape == J_ad.shape
+        worst = max(worst, np.abs(J - J_ad).max() / max(1.0, np.abs(J_ad).max()))
+        worst_r = max(worst_r, np.abs(r - np.asarray(_residuals(jnp.asarray(q), args))).max())
+    assert worst < 1e-9, worst
+    assert worst_r < 1e-9, worst_r
+
+
+@pytest.mark.parametrize("name", ["hand27", "mouse3d"])
+def test_geometric_jacobian_matches_central_differences(name):
+    m = jh.builtin_model(name)
+    rng = np.random.default_rng(11)
+    rig = _rig(m)
+    q = jh.random_q(m, rng)
+    args = make_residual_args(m, rig, _noisy_features(m, rig, jh.random_q(m, rng), rng))
+    _, J = _geometric(jnp.asarray(q), args)
+    batch = jax.jit(jax.vmap(lambda x: residuals(x, args)))
+    fd = central_difference_jacobian(lambda qs: batch(jnp.asarray(qs)), q)
+    J = np.asarray(J)
+    assert np.abs(J - fd).max() / max(1.0, np.abs(J).max()) < 1e-6
+
+
+def test_geometric_jacobian_at_the_singular_points():
+    # A zero quaternion (the kinematics map it to the identity, so nothing moves with it) and
+    # link points behind a perspective camera (their depth is clamped): finite, equal to jacfwd.
+    m = jh.builtin_model("hand27")
+    rng = np.random.default_rng(2)
+    q = jh.random_q(m, rng)
+    inside = jh.Perspective.look_at(np.asarray(q[4:7]) + [0.0, 0.0, -20.0], np.asarray(q[4:7]) + [0.0, 0.0, 100.0])
+    zero_quat = np.concatenate([np.zeros(4), q[4:]])
+    for cams, q_at in (((_rig(m)[1],), zero_quat), ((inside,), q)):
+        args = make_residual_args(m, cams, _noisy_features(m, cams, jh.random_q(m, rng), rng), validate=False)
+        r, J = (np.asarray(x) for x in _geometric(jnp.asarray(q_at), args))
+        J_ad = np.asarray(_jacfwd(jnp.asarray(q_at), args))
+        assert np.all(np.isfinite(r)) and np.all(np.isfinite(J))
+        np.testing.assert_allclose(J, J_ad, rtol=0, atol=1e-9 * max(1.0, np.abs(J_ad).max()))
+        if q_at is zero_quat:
+            assert np.all(J[:, :4] == 0.0)
+
+
+def test_fit_with_geometric_jacobian_equals_autodiff():
+    m = jh.builtin_model("hand21")
+    rng = np.random.default_rng(4)
+    rig = _rig(m)
+    for _ in range(3):
+        q_true = jh.random_q(m, rng, margin=0.1)
+        feats = features_from_pose(m, rig, q_true, noise_px=0.5, rng=rng)
+        q0 = np.clip(q_true + rng.normal(0, 0.05, m.n_q), m.q_lower, m.q_upper)
+        for solver in ("lm", "bounded"):
+            a = jh.fit(m, rig, feats, q0, solver=solver, config=FitConfig(max_steps=30))
+            b = jh.fit(m, rig, feats, q0, solver=solver, config=FitConfig(max_steps=30, jacobian="geometric"))
+            np.testing.assert_allclose(np.asarray(b.q), np.asarray(a.q), atol=1e-7)
+            np.testing.assert_allclose(float(b.cost), float(a.cost), rtol=1e-9)
+            assert b.status_name() == a.status_name()
+
+
+def _reference_step(tracker, state, features):
+    """The tracker's frame, call by call as before the fused program: fit, then robust passes of
+    feature_errors -> reweight -> fit, then the jitted g-h-k step (no loss on these frames)."""
+    cfg = tracker.config
+    fit_config = FitConfig(max_steps=cfg.max_steps, jacobian=cfg.jacobian)
+    q_pred = state.ghk.x
+    result = jh.fit(tracker.model, tracker.cameras, features, q_pred, solver=cfg.solver, config=fit_config)
+    for _ in range(cfg.robust_passes):
+        errors = feature_errors(tracker.model, tracker.cameras, tuple(features), result.q, fit_config.link_fractions)
+        weighted = reweight(tuple(features), errors, cfg.robust_scale_px)
+        result = jh.fit(tracker.model, tracker.cameras, weighted, result.q, solver=cfg.solver, config=fit_config)
+    filtered, ghk = _filter_step(tracker.model, state.ghk, result.q, jnp.asarray(cfg.theta),
+                                 jnp.asarray(tracker.dt_s), cfg.filter)
+    return result, np.asarray(filtered), ghk
+
+
+@pytest.mark.parametrize("preset, solver", [("two_finger_occlusion", "lm"), ("two_camera_hand", "bounded")])
+def test_fused_step_equals_the_unfused_calls(preset, solver):
+    seq = make_preset(preset, frames=5, size=(160, 120))
+    truth_features = [features_from_pose(seq.model, seq.cameras, q, noise_px=0.5, rng=np.random.default_rng(k))
+                      for k, q in enumerate(seq.q)]
+    calls = iter(truth_features)
+    tracker = Tracker(seq.model, seq.cameras, lambda images, q, s: (next(calls), s, {}),
+                      TrackConfig(solver=solver, theta=0.6), dt_s=float(seq.times_s[1] - seq.times_s[0]))
+    state = tracker.init(seq.q[0])
+    for k in range(len(seq.q)):
+        result, filtered, ghk = _reference_step(tracker, state, truth_features[k])
+        state, rep = tracker.step(state, [None] * len(seq.cameras), k, float(seq.times_s[k]))
+        np.testing.assert_allclose(rep.q_solved, np.asarray(result.q), rtol=0, atol=1e-8)
+        np.testing.assert_allclose(rep.q_filtered, filtered, rtol=0, atol=1e-8)
+        np.testing.assert_allclose(np.asarray(state.ghk.x), np.asarray(ghk.x), rtol=0, atol=1e-8)
+        np.testing.assert_allclose(np.asarray(state.ghk.v), np.asarray(ghk.v), rtol=0, atol=1e-6)
+        np.testing.assert_allclose(rep.cost, float(result.cost), rtol=1e-8)
+        n_res = 2 * (seq.model.n_tips + seq.model.n_links) * len(seq.cameras)   # every feature valid
+        assert rep.rms_px == pytest.approx(np.sqrt(2 * float(result.cost) / n_res), rel=1e-8)
+        assert rep.valid_share == 1.0 and not rep.lost and rep.status in ("ok", "max_steps", "singular")
+        # sanity: 0.5 px noise on 160x120 views leaves a few degrees on average
+        assert np.degrees(np.abs(rep.q_solved - seq.q[k])[seq.model.is_angle]).mean() < 6.0
+
+
+def test_fused_step_compiles_once_per_structure():
+    seq = make_preset("two_finger_occlusion", frames=12, size=(160, 120))
+    dt = float(seq.times_s[1] - seq.times_s[0])
+    images = [np.zeros((120, 160), np.uint8)]
+    tracker = Tracker(seq.model, seq.cameras, exact_extractor(seq.model, seq.cameras, seq.q), dt_s=dt)
+    state = tracker.init(seq.q[0])
+    state, _ = tracker.step(state, images)
+    with CompileCounter() as counter:
+        for k in range(1, 6):
+            state, rep = tracker.step(state, images, k)
+        # a second tracker of the same structure, other numbers (filter, scores, frame rate)
+        other = Tracker(seq.model, seq.cameras, exact_extractor(seq.model, seq.cameras, seq.q[6:]),
+                        TrackConfig(theta=0.3, robust_scale_px=4.0, max_rms_px=9.0), dt_s=dt / 2)
+        s2 = other.init(seq.q[6])
+        for k in range(3):
+            s2, rep2 = other.step(s2, images, k)
+    assert counter.count == 0
+    # sanity: the exact features (0.5 px noise) are solved to a few degrees on average
+    assert np.degrees(np.abs(rep.q_solved - seq.q[5])).mean() < 4.0
+    assert np.degrees(np.abs(rep2.q_solved - seq.q[8])).mean() < 4.0
+
+
+def test_bad_features_raise_from_step():
+    seq = make_preset("two_finger_occlusion", frames=3, size=(160, 120))
+    m = seq.model
+    good = features_from_pose(m, seq.cameras, seq.q[0])[0]
+    nan_line = eqx.tree_at(lambda f: f.lines, good, good.lines.at[1, 2].set(jnp.nan))
+    long_normal = eqx.tree_at(lambda f: f.lines, good, good.lines.at[0, :2].multiply(1.1))
+    negative = eqx.tree_at(lambda f: f.tip_weight, good, good.tip_weight.at[0].set(-1.0))
+    short = eqx.tree_at(lambda f: f.tips, good, good.tips[:1])
+    # NaN in a masked slot is fine
+    masked = eqx.tree_at(lambda f: (f.lines, f.line_valid), good,
+                         (good.lines.at[1].set(jnp.nan), good.line_valid.at[1].set(False)))
+    for feats, message in ((nan_line, r"features\[0\]: a valid line or tip holds NaN"),
+                           (long_normal, r"features\[0\]\.lines: \(a, b\) must be unit normals"),
+                           (negative, r"features\[0\]\.tip_weight: weights must be finite and >= 0"),
+                           (short, r"features\[0\]\.tips: expected shape \(2, 2\)"),
+                           ((good, good), r"expected one Features per camera \(1\), got 2"),
+                           (masked, None)):
+        tracker = Tracker(m, seq.cameras, lambda images, q, s, f=feats: (f, s, {}))
+        state = tracker.init(seq.q[0])
+        if message is None:
+            _, rep = tracker.step(state, [None])
+            assert np.all(np.isfinite(rep.q_filtered)) and rep.valid_share == pytest.approx(7 / 8)
+        else:
+            with pytest.raises(jh.InputError, match=message):
+                tracker.step(state, [None])
+    with pytest.raises(jh.InputError, match="jacobian must be one of autodiff, geometric"):
+        TrackConfig(jacobian="numeric")
+    with pytest.raises(jh.InputError, match="config.jacobian"):
+        jh.fit(m, seq.cameras, good, seq.q[0], config=FitConfig(jacobian="numeric"))
