@@ -203,7 +203,7 @@ class _StepNumbers(eqx.Module):
 
 
 class _StepOut(eqx.Module):
-    """Everything :meth:`Tracker.step` needs from one frame's solve and filter, fetched at once.
+    """Everything :meth:`Tracker.step` needs from one frame's solve and filter.
 
     ``q_solved`` is the measurement the filter took (the prediction when the solve was not
     finite); ``status`` is the last solve's :class:`~jaxhand.solve.Status` code.
@@ -222,12 +222,18 @@ class _StepOut(eqx.Module):
     features_ok: Bool[Array, ""]
 
 
+#: The scalars of a :class:`_StepOut`, in the order :func:`_frame_jit` packs them.
+_SCALARS = ("solved_ok", "cost", "iterations", "status", "rms_px", "valid_share", "lost", "features_ok")
+#: The fields of a :class:`~jaxhand.features.Features`, in the order :func:`_frame_jit` takes them.
+_FEATURE_FIELDS = ("lines", "line_valid", "line_weight", "tips", "tip_valid", "tip_weight")
+
+
 def _robust_solve(model: Model, rig: tuple, feats: tuple, q0, build, fit_config, scale_px, passes: int):
     """Solve, then ``passes`` times reweight every feature by its error at the last solution
     (Cauchy weights of the *original* weights, :func:`reweight`) and solve again from there.
 
     The passes run in one ``lax.fori_loop`` so the solver is traced (and compiled) once; pass 0
-    keeps the original weights.
+    keeps the original weights. Only the last pass runs the rank test (an SVD) of its status.
     """
     from .solve._fit import _fit_core
 
@@ -235,7 +241,7 @@ def _robust_solve(model: Model, rig: tuple, feats: tuple, q0, build, fit_config,
         errors = _feature_errors(model, rig, feats, result.q, fit_config.link_fractions)
         weighted = reweight(feats, errors, scale_px)
         weighted = jax.tree_util.tree_map(lambda a, b: jnp.where(i == 0, a, b), feats, weighted)
-        return _fit_core(model, rig, weighted, result.q, build, fit_config)
+        return _fit_core(model, rig, weighted, result.q, build, fit_config, rank_test=i == passes)
 
     start = jax.eval_shape(lambda: _fit_core(model, rig, feats, q0, build, fit_config))
     start = jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), start)
@@ -306,13 +312,26 @@ class _Static:
 
 
 @functools.partial(jax.jit, static_argnums=0)
-def _frame_jit(static: _Static, consts, feats: tuple, ghk: GHKState, q_last) -> _StepOut:
-    """:func:`_frame_step` with the tracker's constant arguments split once into ``consts``
-    (arrays: model numbers, cameras, solver config, settings) and ``static`` (structure).
-    ``eqx.filter_jit`` would partition the whole model on every call, which measured 0.3 ms
-    per frame (hand27, two cameras), more than a small model's solve."""
-    model, rig, build, fit_config, numbers, passes, use_filter, hold = eqx.combine(consts, static.value)
-    return _frame_step(model, rig, feats, ghk, q_last, build, fit_config, numbers, passes, use_filter, hold)
+def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last):
+    """:func:`_frame_step` with flat arguments and results, for the cheapest call from the host.
+
+    The tracker's constant arguments (model, cameras, solver, config, settings) are split once
+    into the leaves ``consts`` and ``static`` (their tree and static half); ``feats`` holds one
+    tuple of :data:`_FEATURE_FIELDS` per camera and ``ghk`` the filter's (x, v, a). Returns
+    ``(q_solved, q_filtered, scalars)``, the scalars of :data:`_SCALARS` packed in one float
+    vector (all exact in float64), and the next filter state (x, v, a).
+
+    Why not ``eqx.filter_jit``: it partitions the whole model on every call, which measured
+    0.3 ms per frame (hand27, two cameras), more than a small model's solve.
+    """
+    treedef, static_half = static.value
+    parts = eqx.combine(jax.tree_util.tree_unflatten(treedef, consts), static_half)
+    model, rig, build, fit_config, numbers, passes, use_filter, hold = parts
+    out = _frame_step(model, rig, tuple(Features(*f) for f in feats), GHKState(*ghk), q_last, build, fit_config,
+                      numbers, passes, use_filter, hold)
+    dtype = out.q_solved.dtype
+    scalars = jnp.stack([jnp.asarray(getattr(out, name), dtype) for name in _SCALARS])
+    return (out.q_solved, out.q_filtered, scalars), (out.ghk.x, out.ghk.v, out.ghk.a)
 
 
 class Tracker:
@@ -346,26 +365,43 @@ class Tracker:
             config.theta, self.dt_s, config.robust_scale_px, config.min_valid_share, config.max_rms_px)))
         # The jitted step's constant arguments, split once into arrays and a static handle
         # (one per value of the hold flag).
-        self._consts, self._static = None, {}
+        self._consts, self._static = (), {}
         for hold in (False, True):
             consts, static = eqx.partition((model, self.cameras, self._build, self._program_config, self._numbers,
                                             config.robust_passes, config.filter, hold), eqx.is_array)
-            self._consts, self._static[hold] = consts, _Static(static)
+            leaves, treedef = jax.tree_util.tree_flatten(consts)
+            self._consts, self._static[hold] = tuple(leaves), _Static((treedef, static))
 
-    def _checked_shapes(self, features) -> tuple[Features, ...]:
-        """The front end's features as a tuple, after the (cheap, host-side) count and shape
-        checks; their values are checked inside the compiled step."""
+    def _feature_arrays(self, features) -> tuple[tuple, ...]:
+        """The front end's features as one tuple of :data:`_FEATURE_FIELDS` arrays per camera
+        (float64, masks bool), after the cheap host-side count and shape checks; their values
+        are checked inside the compiled step."""
         from .features import validate_features
 
         feats = (features,) if isinstance(features, Features) else tuple(features)
-        shapes = ((self.model.n_links, 3), (self.model.n_links,), (self.model.n_links,), (self.model.n_tips, 2),
-                  (self.model.n_tips,), (self.model.n_tips,))
-        if len(feats) != len(self.cameras) or any(
-                not isinstance(f, Features) or (np.shape(f.lines), np.shape(f.line_valid), np.shape(f.line_weight),
-                                                np.shape(f.tips), np.shape(f.tip_valid), np.shape(f.tip_weight))
-                != shapes for f in feats):
-            return validate_features(self.model, self.cameras, feats)   # raises, naming the problem
-        return feats
+        nl, nt = self.model.n_links, self.model.n_tips
+        shapes = ((nl, 3), (nl,), (nl,), (nt, 2), (nt,), (nt,))
+        dtype = jnp.asarray(0.0).dtype   # float64 (jaxhand enables x64)
+        out = []
+        if len(feats) == len(self.cameras) and all(isinstance(f, Features) for f in feats):
+            for f in feats:
+                arrays = []
+                for name, shape in zip(_FEATURE_FIELDS, shapes):
+                    a = getattr(f, name)
+                    if np.shape(a) != shape:
+                        break
+                    want = bool if name.endswith("valid") else dtype
+                    if not (isinstance(a, jax.Array) and a.dtype == want and not a.weak_type):
+                        a = jnp.asarray(np.asarray(a), dtype=want)
+                    arrays.append(a)
+                else:
+                    out.append(tuple(arrays))
+                    continue
+                break
+        if len(out) != len(self.cameras):
+            validate_features(self.model, self.cameras, feats)   # raises, naming the problem
+            raise InputError(f"features: expected one Features per camera ({len(self.cameras)})")
+        return tuple(out)
 
     def init(self, q0, image_state=None) -> TrackState:
         """The state before the first frame: the filter sits at q0 with zero velocity."""
@@ -382,7 +418,6 @@ class Tracker:
         """
         from .features import validate_features
         from .solve import STATUS_NAMES
-        from .solve._fit import _as_arrays
 
         if len(images) != len(self.cameras):
             raise InputError(f"expected one image per camera ({len(self.cameras)}), got {len(images)}")
@@ -390,19 +425,19 @@ class Tracker:
         q_pred = state.ghk.x
         features, image_state, diag = self.extract(images, q_pred, state.image_state)
         t1 = time.perf_counter()
-        feats = _as_arrays(self._checked_shapes(features))
         hold = self.config.hold_on_loss and state.q_last is not None
-        out = _frame_jit(self._static[hold], self._consts, feats, state.ghk, state.q_last if hold else q_pred)
-        ghk_next = out.ghk
-        out = jax.tree_util.tree_map(np.asarray, jax.block_until_ready(eqx.filter(out, eqx.is_array)))
+        (q_meas, filtered, scalars), ghk_next = _frame_jit(
+            self._static[hold], self._consts, self._feature_arrays(features),
+            (state.ghk.x, state.ghk.v, state.ghk.a), state.q_last if hold else q_pred)
+        q_meas, filtered = np.asarray(q_meas), np.asarray(filtered)
+        out = dict(zip(_SCALARS, np.asarray(scalars).tolist()))
         t2 = time.perf_counter()
-        if not out.features_ok:
+        if not out["features_ok"]:
             validate_features(self.model, self.cameras, features)   # raises, naming camera and field
             raise InputError("features: a value check failed (see jaxhand.features.validate_features)")
-        ok, rms, share, lost = bool(out.solved_ok), float(out.rms_px), float(out.valid_share), bool(out.lost)
+        ok, rms, share, lost = bool(out["solved_ok"]), out["rms_px"], out["valid_share"], bool(out["lost"])
         conf, _ = confidence_of(rms, share, self.config)
-        cost = float(out.cost) if ok else float("nan")
-        q_meas, filtered = out.q_solved, out.q_filtered
+        cost = out["cost"] if ok else float("nan")
         t3 = time.perf_counter()
         timings = {"features": t1 - t0, "solve": t2 - t1, "filter": t3 - t2}
         refresh = getattr(self.extract, "refresh", None)
@@ -413,10 +448,10 @@ class Tracker:
         if isinstance(diag, dict) and "timings_s" in diag:  # the front end's own split (e.g. visibility)
             timings.update({f"features.{k}": v for k, v in diag["timings_s"].items()})
         report = StepReport(frame=frame, time_s=time_s, q_pred=np.asarray(q_pred), q_solved=q_meas,
-                            q_filtered=filtered, cost=cost, rms_px=rms, iterations=int(out.iterations),
-                            status=STATUS_NAMES[int(out.status)], valid_share=share, confidence=conf, lost=lost,
+                            q_filtered=filtered, cost=cost, rms_px=rms, iterations=int(out["iterations"]),
+                            status=STATUS_NAMES[int(out["status"])], valid_share=share, confidence=conf, lost=lost,
                             timings_s=timings, diagnostics=diag)
-        return TrackState(ghk=ghk_next, image_state=image_state, frames_done=state.frames_done + 1,
+        return TrackState(ghk=GHKState(*ghk_next), image_state=image_state, frames_done=state.frames_done + 1,
                           q_last=filtered), report
 
 

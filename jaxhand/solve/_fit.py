@@ -55,14 +55,16 @@ def solver_named(name: str) -> str:
     return name
 
 
-def _fit_core(model: Model, rig: tuple, feats: tuple, q0, build: _Builder, config: FitConfig) -> FitResult:
+def _fit_core(model: Model, rig: tuple, feats: tuple, q0, build: _Builder, config: FitConfig,
+              rank_test=True) -> FitResult:
     space = StateSpace.of(model)
     q0 = space.normalize(q0)
     if build is make_bounded_trust_region:   # every iterate inside the limits, the start included
         q0 = space.interior(q0)
     args = ResidualArgs(model=model, cameras=rig, features=feats, fractions=config.link_fractions)
     jac = residuals_and_jacobian if config.jacobian == "geometric" else None
-    return solve_least_squares(residuals, build(config, space), q0, args, space, config, jac=jac)
+    return solve_least_squares(residuals, build(config, space), q0, args, space, config, jac=jac,
+                               rank_test=rank_test)
 
 
 _DEFAULT_CONFIG = FitConfig()
