@@ -12,9 +12,11 @@ Per frame k (thesis fig. 1.2 / DESIGN.md data flow):
 5. score the frame: residual RMS (px) and the share of valid features give a confidence in
    [0, 1] and a loss-of-track flag. A failed or non-finite solve keeps the prediction.
 
-The sequence loop is host Python (frames come from disk and the image front end is NumPy);
-the solve and the filter step are jitted once per model structure, so a sequence never
-recompiles. Results are written frame by frame.
+The sequence loop is host Python (frames come from disk and the image front end is NumPy).
+Steps 3-5 after the front end (the solve with its robust passes, the score and the filter)
+run as one program, compiled once per model structure and settings, so a sequence never
+recompiles, and each frame makes one call and one fetch (see :func:`_frame_jit`). Results are
+written frame by frame.
 """
 
 from __future__ import annotations
@@ -149,7 +151,8 @@ def _filter_update(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter:
     return filtered, GHKState(x=clip_q(model, nxt.x), v=nxt.v, a=nxt.a)
 
 
-#: :func:`_filter_update` on its own (jitted): the unfused reference of the tracker's filter stage.
+#: :func:`_filter_update` on its own (jitted), as the tracker ran it before its frame program was
+#: fused; the tests compare the fused program with these separate calls.
 _filter_step = eqx.filter_jit(_filter_update)
 
 
@@ -183,12 +186,6 @@ def reweight(features: tuple, errors: tuple, scale_px) -> tuple:
                                (f.line_weight / (1.0 + (e_link / scale_px) ** 2),
                                 f.tip_weight / (1.0 + (e_tip / scale_px) ** 2))))
     return tuple(out)
-
-
-def _valid_share(features: Sequence[Features]) -> float:
-    valid = sum(int(np.sum(f.line_valid)) + int(np.sum(f.tip_valid)) for f in features)
-    total = sum(f.line_valid.shape[-1] + f.tip_valid.shape[-1] for f in features)
-    return valid / max(total, 1)
 
 
 class _StepNumbers(eqx.Module):
@@ -365,6 +362,8 @@ class Tracker:
             config.theta, self.dt_s, config.robust_scale_px, config.min_valid_share, config.max_rms_px)))
         # The jitted step's constant arguments, split once into arrays and a static handle
         # (one per value of the hold flag).
+        self._dtype = jnp.asarray(0.0).dtype   # float64 (jaxhand enables x64)
+        self._ghk_tree = jax.tree_util.tree_structure(ghk_init(jnp.zeros(model.n_q)))
         self._consts, self._static = (), {}
         for hold in (False, True):
             consts, static = eqx.partition((model, self.cameras, self._build, self._program_config, self._numbers,
@@ -381,7 +380,7 @@ class Tracker:
         feats = (features,) if isinstance(features, Features) else tuple(features)
         nl, nt = self.model.n_links, self.model.n_tips
         shapes = ((nl, 3), (nl,), (nl,), (nt, 2), (nt,), (nt,))
-        dtype = jnp.asarray(0.0).dtype   # float64 (jaxhand enables x64)
+        dtype = self._dtype
         out = []
         if len(feats) == len(self.cameras) and all(isinstance(f, Features) for f in feats):
             for f in feats:
@@ -451,7 +450,8 @@ class Tracker:
                             q_filtered=filtered, cost=cost, rms_px=rms, iterations=int(out["iterations"]),
                             status=STATUS_NAMES[int(out["status"])], valid_share=share, confidence=conf, lost=lost,
                             timings_s=timings, diagnostics=diag)
-        return TrackState(ghk=GHKState(*ghk_next), image_state=image_state, frames_done=state.frames_done + 1,
+        ghk_next = jax.tree_util.tree_unflatten(self._ghk_tree, ghk_next)   # 1 us; GHKState(...) takes 9
+        return TrackState(ghk=ghk_next, image_state=image_state, frames_done=state.frames_done + 1,
                           q_last=filtered), report
 
 
