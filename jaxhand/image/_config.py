@@ -103,6 +103,11 @@ class SearchConfig:
         max_mismatch: a WSSD match is accepted only when its RMS difference is at most this share
             of the windowed template's standard deviation (rejects a profile that no longer shows
             the phalanx).
+        snap: WSSD boundaries that lie against the background (no other link's outline just
+            outside them) and where the link is seen move to the strongest Gaussian-derivative
+            edge of the right sign within this distance (in ``r``), so the measurement rests on
+            the image's edge rather than on where an earlier, possibly slightly misplaced,
+            template put it (template drift); 0 keeps the template's boundaries (the thesis).
     """
 
     polarity: str = "bright"
@@ -117,6 +122,7 @@ class SearchConfig:
     max_iter: int = 20
     min_window: float = 0.15
     max_mismatch: float = 0.5
+    snap: float = 0.2
 
     def __post_init__(self):
         w = "SearchConfig"
@@ -133,6 +139,7 @@ class SearchConfig:
                f"need an int >= 1, got {self.max_iter!r}")
         _check(0 < self.min_window <= 1, f"{w}.min_window", f"must lie in (0, 1], got {self.min_window!r}")
         _check(self.max_mismatch > 0, f"{w}.max_mismatch", f"must be > 0, got {self.max_mismatch!r}")
+        _check(self.snap >= 0, f"{w}.snap", f"must be >= 0, got {self.snap!r}")
 
     @property
     def sign(self) -> float:
@@ -221,12 +228,17 @@ class TipConfig:
             boundary (the refined tip centre plus one radius along the terminal axial line).
         sigma: Gaussian derivative scale along the tip sampler, samples (0: simple difference).
         min_strength: weakest accepted tip edge, grey levels per pixel.
+        need_line: a tip counts only when its terminal link's line was measured in this frame,
+            so its sampler lies on the measured axis (eq. 4.1); along the predicted axis alone a
+            misplaced prediction can find another edge. Off by default: on the two-finger
+            sequence the tips it drops cost more than the wrong ones it avoids.
     """
 
     points: int = 32
     scope: float = 1.0
     sigma: float = 1.0
     min_strength: float = 8.0
+    need_line: bool = False
 
     def __post_init__(self):
         w = "TipConfig"

@@ -237,7 +237,8 @@ def _tips(grey: np.ndarray, model: Model, obs: _Observation, line_ok: np.ndarray
     beyond = tip[:, None, :] + (ts.radius_px[:, None] * np.array([1.1, 1.4]))[..., None] * ts.v0[:, None, :]
     seen &= np.all(_off_other_links(obs, beyond, tl), axis=-1)
     valid = (s.ok[tl] & found & (strength >= tc.min_strength) & (strength > 0) & seen
-             & (obs.visibility.visible_share[tl] >= config.lines.min_visible) & np.all(np.isfinite(tip), -1))
+             & (obs.visibility.visible_share[tl] >= config.lines.min_visible) & np.all(np.isfinite(tip), -1)
+             & (line_ok[tl] | (not tc.need_line)))
     return (np.where(valid[:, None], tip, 0.0), valid, ts, np.where(valid[:, None], edge, np.nan),
             np.where(valid, strength, 0.0))
 
@@ -266,7 +267,7 @@ def _seen_axis_offsets(obs: _Observation, config: ImageConfig, deadband: float =
     core = np.abs(np.arange(N) - sc.centre) <= 0.7 * r
     covered = np.all(obs.window[..., core], axis=-1)
     ok = (edges.valid.all(-1) & (np.abs(width - 2 * r) <= 0.4 * r) & covered & obs.samplers.ok[:, None]
-          & _against_background(obs))
+          & _against_background(obs).all(-1))
     mid = np.where(ok, edges.pos.mean(-1) - sc.centre, 0.0)
     x = np.arange(M, dtype=float)
     for _ in range(2):  # refit without the midpoints more than one sample off the line
@@ -294,13 +295,14 @@ def _off_other_links(obs: _Observation, points: np.ndarray, links: np.ndarray | 
 
 
 def _against_background(obs: _Observation, reach: tuple[float, ...] = (1.1, 1.25, 1.4)) -> np.ndarray:
-    """(links, samplers) the points ``reach`` radii either side of a profile's centre lie off every
-    other link's outline (:func:`_off_other_links`), so the profile's two boundaries are the
-    link's own, seen against the background."""
+    """(links, samplers, 2) the points ``reach`` radii to each side of a profile's centre (boundary
+    0: towards smaller sample indices, boundary 1: larger) lie off every other link's outline
+    (:func:`_off_other_links`), so that boundary is the link's own, seen against the background."""
     s = obs.samplers
     at = np.concatenate([-np.asarray(reach), np.asarray(reach)])
     off = (s.radius_px[:, None] * at)[:, None, :, None] * s.normal[:, None, None, :]
-    return np.all(_off_other_links(obs, s.centres[:, :, None, :] + off), axis=-1)
+    clear = _off_other_links(obs, s.centres[:, :, None, :] + off)  # (links, samplers, 2 * reaches)
+    return np.stack([clear[..., :len(reach)].all(-1), clear[..., len(reach):].all(-1)], -1)
 
 
 def _shift_profiles(values: np.ndarray, mask: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -424,6 +426,7 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
         state = ImageState.empty(len(rig), model.n_links, layout)
     features, diags, templates, masks = [], [], [], []
     sc = config.samplers
+    snapping = config.method in TEMPLATE_SEARCHES and config.search.snap > 0
     clock = _Clock()
     for c, (grey, cam) in enumerate(zip(greys, rig)):
         obs = _observe(grey, model, cam, q, chain, config, clock)
@@ -435,7 +438,8 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
         profiles = Profiles(values=obs.values, usable=obs.usable, window=obs.window, centre=sc.centre,
                             radius=sc.samples_per_radius, spacing_px=obs.samplers.spacing_px, templates=tmpl,
                             template_valid=tmask.any(axis=(1, 2)) & obs.samplers.ok,
-                            template_mask=tmask)
+                            template_mask=tmask,
+                            boundary_clear=_against_background(obs) if snapping else None)
         clock.lap("search")  # template bookkeeping counts with the search
         edges = search(profiles, config.search)
         clock.lap("search")

@@ -35,6 +35,8 @@ class Profiles:
         template_valid: (links,) a template is stored for the link.
         template_mask: (links, samplers, points) the template samples that showed the link when
             it was taken (None: all of them).
+        boundary_clear: (links, samplers, 2) no other link's outline lies just outside each
+            boundary, so the edge there is the link's own against the background (None: all).
     """
 
     values: np.ndarray
@@ -46,6 +48,7 @@ class Profiles:
     templates: np.ndarray | None = None
     template_valid: np.ndarray | None = None
     template_mask: np.ndarray | None = None
+    boundary_clear: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int, int]:

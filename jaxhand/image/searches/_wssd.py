@@ -29,7 +29,15 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from .._config import SearchConfig
 from .._regression import plls
-from ._common import Edges, Profiles, edges_about_centres, parabola_vertex
+from ._common import (
+    Edges,
+    Profiles,
+    edges_about_centres,
+    gaussian_derivative,
+    masked_argmax,
+    parabola_vertex,
+    per_pixel,
+)
 
 __all__ = ["wssd_valley", "wssd_surface"]
 
@@ -127,6 +135,28 @@ def _refine(W: np.ndarray, yhat: np.ndarray, curve_ok: np.ndarray, S: int, subsa
     return c[:, 0, None] + c[:, 1, None] * x, ok, np.where(use, wmin, np.inf)
 
 
+def _snap_to_edges(profiles: Profiles, pos: np.ndarray, window: np.ndarray, config: SearchConfig) -> np.ndarray:
+    """Move each boundary to the strongest Gaussian-derivative edge of its sign within
+    ``config.snap`` radii, where the boundary lies against the background
+    (``profiles.boundary_clear``) and the sample just inside it lies in the window (the link is
+    seen there, not a nearer finger); elsewhere the boundary stays where it was."""
+    d, d_ok, at = gaussian_derivative(profiles.values, profiles.usable, config.sigma)
+    n = profiles.shape[-1]
+    clear = np.ones(pos.shape, bool) if profiles.boundary_clear is None else profiles.boundary_clear
+    out = pos.copy()
+    for side, inward in ((0, 1.0), (1, -1.0)):
+        p = pos[..., side]
+        inside = np.clip(np.rint(p + inward), 0, n - 1).astype(int)
+        seen = np.take_along_axis(window, inside[..., None], -1)[..., 0] & clear[..., side]
+        score = (config.sign if side == 0 else -config.sign) * d
+        allowed = d_ok & (np.abs(at - p[..., None]) <= config.snap * profiles.radius)
+        k, val, off = masked_argmax(score, allowed, config.subsample)
+        found = np.isfinite(val)
+        strong = found & (per_pixel(np.where(found, val, 0.0), profiles.spacing_px) >= config.min_strength)
+        out[..., side] = np.where(seen & strong, at[k] + off, p)
+    return out
+
+
 def wssd_valley(profiles: Profiles, config: SearchConfig) -> Edges:
     """Boundaries from the valley line of the windowed-SSD surface against stored templates."""
     L, M, N = profiles.shape
@@ -150,5 +180,7 @@ def wssd_valley(profiles: Profiles, config: SearchConfig) -> Edges:
     match = np.sqrt(np.where(np.isfinite(wmin), wmin, np.inf)) <= config.max_mismatch * contrast
     valid = curve_ok & (fit_ok & ok)[:, None] & match & (np.abs(y) <= S)
     pos = edges_about_centres(profiles.centre + y, 2 * profiles.radius)
+    if config.snap > 0:
+        pos = _snap_to_edges(profiles, pos, window, config)
     return Edges(pos=pos, strength=np.repeat(contrast[..., None], 2, -1), valid=np.repeat(valid[..., None], 2, -1),
                  surface=W, shifts=shifts)
