@@ -28,7 +28,7 @@ from jaxhand.image import (
     capture_templates,
     extract_features,
 )
-from jaxhand.render import RenderConfig, fit_perspective, render_frame
+from jaxhand.render import RenderConfig, fit_perspective, make_preset, render_frame
 
 FRONT_LIGHT = (0.0, 0.0, -1.0)
 
@@ -424,3 +424,36 @@ def test_bgr_and_float_images_give_the_same_lines(hand):
     c, _ = extract_features(img.astype(np.float64), m, cam, q, ImageConfig(method="gaussian"))
     assert np.allclose(np.asarray(a[0].lines), np.asarray(b[0].lines))
     assert np.allclose(np.asarray(a[0].lines), np.asarray(c[0].lines))
+
+
+def test_templates_taken_at_a_misplaced_pose_do_not_carry_the_error(finger):
+    # Template drift (thesis §4.3.1 refreshes templates at each solved pose): a template taken
+    # where the solve put the finger 3 degrees off shows the finger off-centre; re-centring the
+    # template and snapping the boundaries to the image's edges keep the next match on the finger.
+    m, cam, q, img = finger
+    q_off = q + _alternating(m, 3.0)
+    drift = _run(m, cam, img, q, "wssd", q_templates=q_off, template_image=img, template_recentre=False,
+                 search=SearchConfig(snap=0.0))[0]
+    fixed = _run(m, cam, img, q, "wssd", q_templates=q_off, template_image=img)[0]
+    ang_d, off_d = line_errors(m, cam, q, drift)
+    ang_f, off_f = line_errors(m, cam, q, fixed)
+    assert np.asarray(fixed.line_valid).all()
+    assert ang_d.max() > 2.5 and off_d.max() > 4.0  # the thesis's templates keep the misplacement
+    assert ang_f.max() < 0.5 and off_f.max() < 0.6  # snapped edges: Gaussian-derivative peaks
+
+
+def test_tip_over_another_finger_is_invalid():
+    # The index tip lies over the middle finger: its outward boundary there is a faint shading
+    # edge, and the strongest derivative along the sampler lies elsewhere (was 4-18 px off).
+    seq = make_preset("two_finger_occlusion", frames=80)
+    m, cam, q = seq.model, seq.cameras[0], seq.q[20]
+    img = render_frame(m, cam, q, RenderConfig(antialias=3)).image
+    f, diag = extract_features(img, m, cam, q, ImageConfig(method="gaussian"))
+    vis = diag.cameras[0].visibility
+    v = jh.project_pose(m, cam, jnp.asarray(q))
+    tips, tip_links = np.asarray(v.tips_px), list(m.tip_links)
+    over = [shapely.contains_xy(vis.outlines[m.link_lookup("middle_dip")], *tips[1])]
+    assert tip_links[1] == m.link_lookup("index_dip") and over == [True]
+    valid = np.asarray(f[0].tip_valid)
+    assert not valid[1]
+    assert valid[0] and np.linalg.norm(np.asarray(f[0].tips)[0] - tips[0]) < 1.0
