@@ -68,6 +68,14 @@ class TrackConfig:
         jacobian: how the solver computes the residual Jacobian (:attr:`jaxhand.FitConfig.jacobian`):
             "geometric" (joint axes, DigitEyes eqs. 8-10; the default, several times cheaper on
             CPU) or "autodiff" (``jax.jacfwd``); they agree to rounding.
+        gate_scale_px: the first solve weighs every feature by a Cauchy weight of its distance to
+            the model at the pose it was searched around (the prediction), so a feature the search
+            took from the wrong place (another finger, a misplaced window) cannot pull the first
+            solve before the robust passes judge it; 0 starts from the front end's weights.
+        reextract: after the solve, run the front end again around the solved pose and solve again
+            from there, this many times: samplers and visibility windows then follow the measured
+            pose rather than the prediction (not in the thesis; it matters where one finger
+            occludes another and a few degrees move the window off the occluder).
     """
 
     solver: str = "lm"
@@ -82,6 +90,8 @@ class TrackConfig:
     refresh_templates: bool = True
     hold_on_loss: bool = True
     jacobian: str = "geometric"
+    gate_scale_px: float = 2.0
+    reextract: int = 1
 
     def __post_init__(self):
         if not 0.0 <= self.theta <= 1.0:
@@ -91,6 +101,8 @@ class TrackConfig:
         if self.robust_passes < 0 or self.robust_scale_px <= 0:
             raise InputError(f"robust_passes must be >= 0 and robust_scale_px > 0, got {self.robust_passes}, "
                              f"{self.robust_scale_px}")
+        if self.gate_scale_px < 0 or self.reextract < 0:
+            raise InputError(f"gate_scale_px and reextract must be >= 0, got {self.gate_scale_px}, {self.reextract}")
         from .solve._config import JACOBIANS
 
         if self.jacobian not in JACOBIANS:
@@ -195,6 +207,7 @@ class _StepNumbers(eqx.Module):
     theta: Float[Array, ""]
     dt_s: Float[Array, ""]
     robust_scale_px: Float[Array, ""]
+    gate_scale_px: Float[Array, ""]
     min_valid_share: Float[Array, ""]
     max_rms_px: Float[Array, ""]
 
@@ -225,19 +238,25 @@ _SCALARS = ("solved_ok", "cost", "iterations", "status", "rms_px", "valid_share"
 _FEATURE_FIELDS = ("lines", "line_valid", "line_weight", "tips", "tip_valid", "tip_weight")
 
 
-def _robust_solve(model: Model, rig: tuple, feats: tuple, q0, build, fit_config, scale_px, passes: int):
+def _robust_solve(model: Model, rig: tuple, feats: tuple, q0, build, fit_config, scale_px, passes: int,
+                  gate_px=0.0):
     """Solve, then ``passes`` times reweight every feature by its error at the last solution
     (Cauchy weights of the *original* weights, :func:`reweight`) and solve again from there.
 
-    The passes run in one ``lax.fori_loop`` so the solver is traced (and compiled) once; pass 0
-    keeps the original weights. Only the last pass runs the rank test (an SVD) of its status.
+    The passes run in one ``lax.fori_loop`` so the solver is traced (and compiled) once. Pass 0
+    weighs the features by their errors at ``q0`` with the scale ``gate_px`` (0 keeps the
+    original weights). Only the last pass runs the rank test (an SVD) of its status.
     """
     from .solve._fit import _fit_core
+
+    gated = reweight(feats, _feature_errors(model, rig, feats, q0, fit_config.link_fractions),
+                     jnp.where(gate_px > 0, gate_px, 1.0))   # Guard: scale 0 means no gate
+    first = jax.tree_util.tree_map(lambda a, b: jnp.where(gate_px > 0, b, a), feats, gated)
 
     def one_pass(i, result):
         errors = _feature_errors(model, rig, feats, result.q, fit_config.link_fractions)
         weighted = reweight(feats, errors, scale_px)
-        weighted = jax.tree_util.tree_map(lambda a, b: jnp.where(i == 0, a, b), feats, weighted)
+        weighted = jax.tree_util.tree_map(lambda a, b: jnp.where(i == 0, a, b), first, weighted)
         return _fit_core(model, rig, weighted, result.q, build, fit_config, rank_test=i == passes)
 
     start = jax.eval_shape(lambda: _fit_core(model, rig, feats, q0, build, fit_config))
@@ -261,13 +280,15 @@ def _features_ok(feats: tuple) -> Bool[Array, ""]:
     return ok
 
 
-def _frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, build, fit_config,
+def _frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, q_start, build, fit_config,
                 numbers: _StepNumbers, passes: int, use_filter: bool, hold: bool) -> _StepOut:
-    """One frame after feature extraction, in one compiled program: the (robust) solve from the
-    prediction ``ghk.x``, the frame's score and loss flag, and the g-h-k update and prediction
-    (or, with ``hold`` on a lost frame, ``q_last`` held still), and the features' value check."""
+    """One frame after feature extraction, in one compiled program: the (robust) solve from
+    ``q_start`` (the prediction ``ghk.x``, or an earlier solve of this frame that the features were
+    searched around), the frame's score and loss flag, and the g-h-k update and prediction (or,
+    with ``hold`` on a lost frame, ``q_last`` held still), and the features' value check."""
     q_pred = ghk.x
-    result = _robust_solve(model, rig, feats, q_pred, build, fit_config, numbers.robust_scale_px, passes)
+    result = _robust_solve(model, rig, feats, q_start, build, fit_config, numbers.robust_scale_px, passes,
+                           numbers.gate_scale_px)
     ok = jnp.all(jnp.isfinite(result.q)) & jnp.isfinite(result.cost)
     q_meas = jnp.where(ok, result.q, q_pred)
     n_tips = sum(jnp.sum(f.tip_valid) for f in feats)
@@ -309,12 +330,13 @@ class _Static:
 
 
 @functools.partial(jax.jit, static_argnums=0)
-def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last):
+def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last, q_start):
     """:func:`_frame_step` with flat arguments and results, for the cheapest call from the host.
 
     The tracker's constant arguments (model, cameras, solver, config, settings) are split once
     into the leaves ``consts`` and ``static`` (their tree and static half); ``feats`` holds one
-    tuple of :data:`_FEATURE_FIELDS` per camera and ``ghk`` the filter's (x, v, a). Returns
+    tuple of :data:`_FEATURE_FIELDS` per camera, ``ghk`` the filter's (x, v, a) and ``q_start``
+    where the solve starts. Returns
     ``(q_solved, q_filtered, scalars)``, the scalars of :data:`_SCALARS` packed in one float
     vector (all exact in float64), and the next filter state (x, v, a).
 
@@ -324,8 +346,8 @@ def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last)
     treedef, static_half = static.value
     parts = eqx.combine(jax.tree_util.tree_unflatten(treedef, consts), static_half)
     model, rig, build, fit_config, numbers, passes, use_filter, hold = parts
-    out = _frame_step(model, rig, tuple(Features(*f) for f in feats), GHKState(*ghk), q_last, build, fit_config,
-                      numbers, passes, use_filter, hold)
+    out = _frame_step(model, rig, tuple(Features(*f) for f in feats), GHKState(*ghk), q_last, q_start, build,
+                      fit_config, numbers, passes, use_filter, hold)
     dtype = out.q_solved.dtype
     scalars = jnp.stack([jnp.asarray(getattr(out, name), dtype) for name in _SCALARS])
     return (out.q_solved, out.q_filtered, scalars), (out.ghk.x, out.ghk.v, out.ghk.a)
@@ -359,10 +381,12 @@ class Tracker:
         # The compiled program's solver and its (solver-adjusted) config, checked once here.
         self._build, self._program_config = _program(config.solver, self._fit_config)
         self._numbers = _StepNumbers(*(jnp.asarray(float(v)) for v in (
-            config.theta, self.dt_s, config.robust_scale_px, config.min_valid_share, config.max_rms_px)))
+            config.theta, self.dt_s, config.robust_scale_px, config.gate_scale_px, config.min_valid_share,
+            config.max_rms_px)))
         # The jitted step's constant arguments, split once into arrays and a static handle
         # (one per value of the hold flag).
         self._dtype = jnp.asarray(0.0).dtype   # float64 (jaxhand enables x64)
+        self._lower, self._upper = np.asarray(model.q_lower), np.asarray(model.q_upper)
         self._ghk_tree = jax.tree_util.tree_structure(ghk_init(jnp.zeros(model.n_q)))
         self._consts, self._static = (), {}
         for hold in (False, True):
@@ -413,24 +437,35 @@ class Tracker:
 
         After the image front end, the solve (with its robust passes), the frame's score and the
         filter run as one compiled program whose results come back in one transfer; the timings
-        ``solve`` (that program) and ``filter`` (scoring and report on the host) split it.
+        ``solve`` (that program) and ``filter`` (scoring and report on the host) split it. With
+        ``config.reextract`` the front end and the program run again from the solved pose (an
+        extractor with ``reextract = False``, such as :func:`exact_extractor`, is asked once);
+        ``features`` and ``solve`` then add up every round.
         """
         from .features import validate_features
         from .solve import STATUS_NAMES
 
         if len(images) != len(self.cameras):
             raise InputError(f"expected one image per camera ({len(self.cameras)}), got {len(images)}")
-        t0 = time.perf_counter()
         q_pred = state.ghk.x
-        features, image_state, diag = self.extract(images, q_pred, state.image_state)
-        t1 = time.perf_counter()
         hold = self.config.hold_on_loss and state.q_last is not None
-        (q_meas, filtered, scalars), ghk_next = _frame_jit(
-            self._static[hold], self._consts, self._feature_arrays(features),
-            (state.ghk.x, state.ghk.v, state.ghk.a), state.q_last if hold else q_pred)
-        q_meas, filtered = np.asarray(q_meas), np.asarray(filtered)
-        out = dict(zip(_SCALARS, np.asarray(scalars).tolist()))
-        t2 = time.perf_counter()
+        rounds = 1 + (self.config.reextract if getattr(self.extract, "reextract", True) else 0)
+        t_features = t_solve = 0.0
+        q_start, image_state = q_pred, state.image_state
+        for _ in range(rounds):
+            t0 = time.perf_counter()
+            features, image_state, diag = self.extract(images, q_start, image_state)
+            t1 = time.perf_counter()
+            (q_meas, filtered, scalars), ghk_next = _frame_jit(
+                self._static[hold], self._consts, self._feature_arrays(features),
+                (state.ghk.x, state.ghk.v, state.ghk.a), state.q_last if hold else q_pred, q_start)
+            q_meas, filtered = np.asarray(q_meas), np.asarray(filtered)
+            out = dict(zip(_SCALARS, np.asarray(scalars).tolist()))
+            t2 = time.perf_counter()
+            t_features, t_solve = t_features + (t1 - t0), t_solve + (t2 - t1)
+            if not out["features_ok"] or out["lost"]:  # nothing better to search around
+                break
+            q_start = np.clip(q_meas, self._lower, self._upper)
         if not out["features_ok"]:
             validate_features(self.model, self.cameras, features)   # raises, naming camera and field
             raise InputError("features: a value check failed (see jaxhand.features.validate_features)")
@@ -438,7 +473,7 @@ class Tracker:
         conf, _ = confidence_of(rms, share, self.config)
         cost = out["cost"] if ok else float("nan")
         t3 = time.perf_counter()
-        timings = {"features": t1 - t0, "solve": t2 - t1, "filter": t3 - t2}
+        timings = {"features": t_features, "solve": t_solve, "filter": t3 - t2}
         refresh = getattr(self.extract, "refresh", None)
         if refresh is not None and not lost and self.config.refresh_templates:
             t4 = time.perf_counter()
@@ -469,4 +504,5 @@ def exact_extractor(model: Model, cameras, truth, *, noise_px: float = 0.5, seed
         calls[0] += 1
         return features_from_pose(model, cameras, truth[k], noise_px=noise_px, rng=rng), state, {}
 
+    extract.reextract = False  # one call per frame: a second look at the same frame gains nothing
     return extract

@@ -27,6 +27,7 @@ def oracle(model, cameras, truth, noise_px=0.3, seed=0, drop_frame=None):
             return tuple(f for _ in cameras), state, {}
         return features_from_pose(model, cameras, truth[k], noise_px=noise_px, rng=rng), state, {}
 
+    extract.reextract = False  # one call per frame (the tracker asks it once)
     return extract
 
 
@@ -96,6 +97,7 @@ def test_interrupted_run_keeps_finished_frames(tmp_path, seq):
             raise KeyboardInterrupt
         return inner(images, q_pred, state)
 
+    extract.reextract = False
     with pytest.raises(KeyboardInterrupt):
         track_sequence(seq.model, seq.cameras, [FrameSource(d, fps=25)], seq.q[0], tmp_path / "out", extract,
                        video=False)
@@ -112,3 +114,40 @@ def test_tracker_input_errors(seq):
         tracker.step(tracker.init(seq.q[0]), [np.zeros((4, 4), np.uint8)] * 2)
     with pytest.raises(jh.InputError, match="theta must lie in"):
         TrackConfig(theta=1.5)
+
+
+def test_gate_keeps_a_misplaced_feature_from_pulling_the_first_solve(seq):
+    # the middle finger's distal line taken 15 px off (from the wrong finger, say); the prediction
+    # 2 degrees off: gating the first solve by the distance to the predicted model keeps the fit
+    # near the truth, where the robust passes alone start from a fit the outlier has bent
+    m, q = seq.model, seq.q[15]
+    f = features_from_pose(m, seq.cameras, q)[0]
+    bad = type(f)(f.lines.at[m.link_lookup("middle_dip"), 2].add(15.0), f.line_valid, f.line_weight, f.tips,
+                  f.tip_valid, f.tip_weight)
+    worst = {}
+    for gate in (0.0, 2.0):
+        tracker = Tracker(m, seq.cameras, lambda images, q_pred, s: ((bad,), s, {}),
+                          TrackConfig(gate_scale_px=gate, reextract=0, filter=False))
+        state = tracker.init(np.clip(q + np.radians(2.0), m.q_lower, m.q_upper))
+        _, rep = tracker.step(state, [None], 0, 0.0)
+        worst[gate] = np.degrees(np.abs(rep.q_solved - q)).max()
+    assert worst[0.0] > 8.0 and worst[2.0] < 3.0, worst
+
+
+def test_reextract_searches_again_around_the_solved_pose(seq):
+    m = seq.model
+    asked = []
+
+    def extract(images, q_pred, state):
+        asked.append(np.asarray(q_pred, float).copy())
+        return features_from_pose(m, seq.cameras, seq.q[10]), state, {}
+
+    tracker = Tracker(m, seq.cameras, extract, TrackConfig(reextract=2))
+    state = tracker.init(seq.q[9])
+    state, rep = tracker.step(state, [None], 0, 0.0)
+    assert len(asked) == 3  # the prediction, then twice around the solve
+    np.testing.assert_array_equal(asked[0], seq.q[9])
+    np.testing.assert_allclose(asked[1], seq.q[10], atol=1e-6)  # exact features: the first solve is exact
+    np.testing.assert_allclose(rep.q_solved, seq.q[10], atol=1e-8)
+    with pytest.raises(jh.InputError, match="reextract"):
+        TrackConfig(reextract=-1)

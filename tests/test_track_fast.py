@@ -175,7 +175,8 @@ def test_fused_step_equals_the_unfused_calls(preset, solver):
                       for k, q in enumerate(seq.q)]
     calls = iter(truth_features)
     tracker = Tracker(seq.model, seq.cameras, lambda images, q, s: (next(calls), s, {}),
-                      TrackConfig(solver=solver, theta=0.6), dt_s=float(seq.times_s[1] - seq.times_s[0]))
+                      TrackConfig(solver=solver, theta=0.6, gate_scale_px=0.0, reextract=0),
+                      dt_s=float(seq.times_s[1] - seq.times_s[0]))
     state = tracker.init(seq.q[0])
     for k in range(len(seq.q)):
         result, filtered, ghk = _reference_step(tracker, state, truth_features[k])
