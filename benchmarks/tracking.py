@@ -11,6 +11,12 @@ sequence.
 
     .venv/bin/python benchmarks/tracking.py            # all sequences
     .venv/bin/python benchmarks/tracking.py --quick    # fewer frames, no JSON
+    .venv/bin/python benchmarks/tracking.py --sweep    # two-finger sequence at 6 frame rates
+
+``--sweep`` measures how much one number depends on the sampling: the same two-finger motion
+rendered at 60 to 120 frames (the frame rate changes, the motion does not), each tracked with the
+image front end; it prints the mean joint error and frames before loss per run and saves
+``benchmarks/results/tracking_sweep.json``.
 """
 
 from __future__ import annotations
@@ -37,7 +43,7 @@ from jaxhand.viz import plot_joint_angles  # noqa: E402
 # (sequence, front-end method, solver, steps per frame, frames): the documents' choice for each
 # experiment. Frames: each preset's motion sampled at 25 fps (10 fps for the DigitEyes ones).
 EXPERIMENTS = [
-    ("two_finger_occlusion", "wssd", "lm", 20, 80),           # thesis §6.1: the proposed method
+    ("two_finger_occlusion", "wssd", "bounded", 20, 80),      # thesis §6.1: the proposed method
     ("full_hand_spread_flex", "imwplls", "bounded", 20, 100),  # thesis §6.2.2: alternative method, bounded
     ("index_thumb_grasp", "imwplls", "lm", 20, 120),          # thesis §6.2.1 (real images there)
     ("two_camera_hand", "gaussian", "lm", 20, 100),           # DigitEyes §6.2: 27 DOF, two cameras
@@ -73,6 +79,37 @@ def run(seq, images, extract, config: TrackConfig) -> dict:
     }
 
 
+SWEEP_FRAMES = (60, 70, 80, 90, 100, 120)
+
+
+def sweep(name: str, args) -> int:
+    """Track one experiment's motion sampled at each of :data:`SWEEP_FRAMES` frame counts."""
+    _, method, solver, steps, _ = next(e for e in EXPERIMENTS if e[0] == name)
+    method, solver = args.method or method, args.solver or solver
+    rows = []
+    for frames in SWEEP_FRAMES:
+        seq = make_preset(name, frames=frames, size=args.size)
+        images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras] for q in seq.q]
+        r = run(seq, images, image_extractor(seq.model, seq.cameras, ImageConfig(method=method)),
+                TrackConfig(solver=solver, max_steps=steps, theta=args.theta))
+        rows.append({"frames": frames, "fps_of_sequence": round(1 / float(seq.times_s[1] - seq.times_s[0]), 2),
+                     **{k: v for k, v in r.items() if not k.startswith("q_") and k != "per_joint_mean_deg"}})
+        print(f"{name} {method}+{solver}: {frames:4d} frames  mean {r['joint_error_mean_deg']:5.2f} deg  max "
+              f"{r['joint_error_max_deg']:5.1f} deg  raw {r['solved_joint_error_mean_deg']:5.2f} deg  before loss "
+              f"{r['frames_before_loss']}/{r['frames']}  {r['fps_end_to_end']:5.1f} frames/s", flush=True)
+    means = [row["joint_error_mean_deg"] for row in rows]
+    print(f"mean joint error over the runs: median {np.median(means):.2f} deg, mean {np.mean(means):.2f}, "
+          f"range {min(means):.2f}-{max(means):.2f}; runs without loss: "
+          f"{sum(row['lost_frames'] == 0 for row in rows)}/{len(rows)}")
+    out = {"environment": {**environment(), "backend": jax.default_backend()}, "sequence": name, "method": method,
+           "solver": solver, "theta": args.theta, "size": args.size, "runs": rows,
+           "median_of_means_deg": float(np.median(means)), "mean_of_means_deg": float(np.mean(means))}
+    path = RESULTS / "tracking_sweep.json"
+    write_json(out, path)
+    print(f"wrote {path}")
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="12 frames per sequence, no JSON")
@@ -83,7 +120,11 @@ def main(argv=None) -> int:
     parser.add_argument("--theta", type=float, default=0.85, help="g-h-k discount factor")
     parser.add_argument("--size", default="320x240", help="image size WxH")
     parser.add_argument("--frames", type=int, help="frames per sequence (default: each experiment's own)")
+    parser.add_argument("--sweep", action="store_true", help="the two-finger motion (or --only) at 6 frame rates")
     args = parser.parse_args(argv)
+    if args.sweep:
+        RESULTS.mkdir(parents=True, exist_ok=True)
+        return sweep(args.only or "two_finger_occlusion", args)
     rows, out = [], {"environment": {**environment(), "backend": jax.default_backend()}, "sequences": {}}
     RESULTS.mkdir(parents=True, exist_ok=True)
     for name, method, solver, steps, frames in EXPERIMENTS:

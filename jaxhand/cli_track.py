@@ -58,7 +58,7 @@ def register(sub) -> None:
     p.add_argument("--camera", action="append", help="camera JSON file (once per camera, or one rig file)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--method", default="wssd", help="feature search (see jaxhand.image.SEARCH_NAMES)")
-    p.add_argument("--solver", default="lm", help="gn | gn_eta | lm_fixed | lm | bounded")
+    p.add_argument("--solver", default="bounded", help="gn | gn_eta | lm_fixed | lm | bounded")
     p.add_argument("--steps", type=int, default=20, help="solver iterations per frame (1: thesis fast mode)")
     p.add_argument("--theta", type=float, default=0.85, help="g-h-k discount factor")
     p.add_argument("--no-filter", action="store_true", help="report the raw solve, predict with it")

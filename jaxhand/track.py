@@ -49,7 +49,9 @@ class TrackConfig:
     """Tracker settings (host-side; numbers that enter jitted code are passed as arrays).
 
     Attributes:
-        solver: solver name for :func:`jaxhand.fit` (e.g. "gn", "lm", "bounded").
+        solver: solver name for :func:`jaxhand.fit` (e.g. "gn", "lm", "bounded"); the default
+            "bounded" keeps every iterate inside the joint limits, which on the two-finger
+            sequence keeps an occluded finger from being fitted into impossible poses.
         max_steps: solver iterations per frame (1 = the thesis's fast mode).
         theta: g-h-k discount factor in [0, 1] (thesis §6 uses 0.85).
         filter: apply the g-h-k filter (False: report and predict the raw solve).
@@ -78,7 +80,7 @@ class TrackConfig:
             occludes another and a few degrees move the window off the occluder).
     """
 
-    solver: str = "lm"
+    solver: str = "bounded"
     max_steps: int = 20
     theta: float = 0.85
     filter: bool = True

@@ -18,7 +18,7 @@ chapter 6, with exact ground truth:
 
 1. **two-finger occlusion** (thesis §6.1): the `two_fingers` model (Table 6.1) flexing in a plane tilted 45° to
    an orthographic camera, the index finger passing over the middle finger; the thesis's proposed front end
-   (`"wssd"`, windowed SSD template search), solver `"lm"`, g-h-k discount θ = 0.85;
+   (`"wssd"`, windowed SSD template search), the `"bounded"` solver, g-h-k discount θ = 0.85;
 2. **the full 21-DOF hand** (thesis §6.2.2): `hand21` spreading its fingers, then hyper-extending the little
    finger while the index flexes; the alternative front end (`"imwplls"`) with the `"bounded"` solver.
 
@@ -145,14 +145,14 @@ def plot_overlays(seq, images, reports, title):
 md(r"""
 ## 1. Two-finger occlusion (thesis §6.1)
 
-60 frames at 25 fps. The tracker starts at the true first pose; from then on it sees only the rendered images.
+80 frames at 25 fps. The tracker starts at the true first pose; from then on it sees only the rendered images.
 Each line below gives the filtered estimate's mean and max joint error over all frames and joints, its mean 2-D
 tip error, the same for the raw solver output, the number of frames the tracker flagged as lost (residual RMS
 above 6 px or fewer than 30 % of the features found), and the wall time.
 """)
 
 code(r"""
-seq2, images2, runs2 = experiment("two_finger_occlusion", "wssd", "lm", frames=60)
+seq2, images2, runs2 = experiment("two_finger_occlusion", "wssd", "bounded", frames=80)
 """)
 
 md(r"""
@@ -162,7 +162,7 @@ and dashed is the error the image front end adds, mostly while the index finger 
 """)
 
 code(r"""
-plot_angles(seq2, runs2, "two_finger_occlusion: two_fingers model, wssd + lm, theta 0.85")
+plot_angles(seq2, runs2, "two_finger_occlusion: two_fingers model, wssd + bounded, theta 0.85")
 """)
 
 code(r"""
