@@ -19,9 +19,11 @@ class image_extractor:  # noqa: N801 (used like a function: image_extractor(mode
 
     Calling it, ``extract(images, q_pred, image_state) -> (features, image_state, diagnostics)``,
     extracts the features around the prediction; the diagnostics hold the window polygons per
-    camera (for overlays) and the front end's stage timings. After a good solve the tracker
-    calls :meth:`refresh`, which stores the profiles seen at the solved pose as the templates
-    of the links visible there (thesis §4.3.1: templates come from unoccluded views).
+    camera as coordinate arrays (for overlays; a :class:`jaxhand.image.WindowOutlines`, which
+    converts a camera's polygons only when they are read) and the front end's stage timings.
+    After a good solve the tracker calls :meth:`refresh`, which stores the profiles seen at the
+    solved pose as the templates of the links visible there (thesis §4.3.1: templates come from
+    unoccluded views).
     """
 
     def __init__(self, model, cameras, config=None):
@@ -31,12 +33,11 @@ class image_extractor:  # noqa: N801 (used like a function: image_extractor(mode
         self.config = ImageConfig() if config is None else config
 
     def __call__(self, images, q_pred, state):
-        from .image import extract_features
+        from .image import WindowOutlines, extract_features
 
         features, diag = extract_features(images, self.model, self.cameras, np.asarray(q_pred), self.config, state)
-        windows = [[np.asarray(w.exterior.coords) for w in cd.visibility.windows
-                    if w is not None and not w.is_empty and w.geom_type == "Polygon"] for cd in diag.cameras]
-        info = {"windows": windows, "method": diag.method}
+        # The window outlines per camera, as coordinate arrays converted only when read (overlays).
+        info = {"windows": WindowOutlines(diag), "method": diag.method}
         if getattr(diag, "timings_s", None):
             info["timings_s"] = dict(diag.timings_s)
         return features, diag.state, info

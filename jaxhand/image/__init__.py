@@ -23,7 +23,14 @@ from ._config import (
     TipConfig,
     VisibilityConfig,
 )
-from ._extract import CameraDiagnostics, Diagnostics, as_images, capture_templates, extract_features
+from ._extract import (
+    CameraDiagnostics,
+    Diagnostics,
+    WindowOutlines,
+    as_images,
+    capture_templates,
+    extract_features,
+)
 from ._lines import axial_line, line_params, line_point_direction, offset_towards, ransac_pca
 from ._regression import imwplls, mwplls, plls
 from ._sampling import as_grey, sample_profiles
@@ -33,7 +40,7 @@ from ._visibility import Visibility, compute_visibility, pill_outlines, same_cha
 from .searches import SEARCH_NAMES, SEARCHES, Edges, Profiles, search_named
 
 __all__ = [
-    "extract_features", "capture_templates", "ImageState", "Diagnostics", "CameraDiagnostics",
+    "extract_features", "capture_templates", "ImageState", "Diagnostics", "CameraDiagnostics", "WindowOutlines",
     "ImageConfig", "SamplerConfig", "SearchConfig", "VisibilityConfig", "LineConfig", "TipConfig",
     "INTERPOLATIONS", "POLARITIES", "SEARCH_NAMES", "SEARCHES", "search_named", "Profiles", "Edges",
     "as_grey", "as_images", "sample_profiles",

@@ -16,6 +16,7 @@ Per camera (thesis ch. 4, DESIGN.md data flow):
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from collections.abc import Sequence
 
@@ -34,11 +35,11 @@ from ._regression import plls
 from ._sampling import as_grey, sample_profiles
 from ._state import ImageState
 from ._trackers import LinkSamplers, TipSamplers, place_link_samplers, place_tip_samplers
-from ._visibility import Visibility, compute_visibility, same_chain, window_masks
+from ._visibility import Visibility, compute_visibility, convex_edges, inside_polygons, same_chain, window_masks
 from .searches import TEMPLATE_SEARCHES, Edges, Profiles, search_named
 from .searches._common import gaussian_derivative, masked_argmax, simple_derivative
 
-__all__ = ["extract_features", "capture_templates", "Diagnostics", "CameraDiagnostics", "as_images"]
+__all__ = ["extract_features", "capture_templates", "Diagnostics", "CameraDiagnostics", "as_images", "WindowOutlines"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -146,6 +147,11 @@ class _Observation:
     values: np.ndarray
     usable: np.ndarray
     window: np.ndarray
+
+    @functools.cached_property
+    def outline_edges(self):
+        """:func:`convex_edges` of the outlines, computed once for every point test of this view."""
+        return convex_edges(self.visibility.outlines)
 
 
 def _observe(grey: np.ndarray, model: Model, camera, q: np.ndarray, chain: np.ndarray, config: ImageConfig,
@@ -289,6 +295,18 @@ def _off_other_links(obs: _Observation, points: np.ndarray, links: np.ndarray | 
     outlines = obs.visibility.outlines
     L = len(outlines)
     links = np.arange(L) if links is None else np.asarray(links, int)
+    pts = np.asarray(points, float)
+    inside = inside_polygons(outlines, pts, edges=obs.outline_edges)  # (links, ..., L): each point, each outline
+    own = np.arange(L) == links.reshape((-1,) + (1,) * (pts.ndim - 1))
+    return ~np.any(inside & ~own, axis=-1)
+
+
+def _off_other_links_union(obs: _Observation, points: np.ndarray, links: np.ndarray | None = None) -> np.ndarray:
+    """:func:`_off_other_links` the slow way, one shapely union of the other outlines per link (the
+    reference the tests compare it with)."""
+    outlines = obs.visibility.outlines
+    L = len(outlines)
+    links = np.arange(L) if links is None else np.asarray(links, int)
     present = ~shapely.is_empty(outlines)
     others = np.array([shapely.union_all(outlines[present & (np.arange(L) != i)]) for i in links], dtype=object)
     return ~window_masks(others, points)
@@ -333,12 +351,14 @@ def _take_templates(obs: _Observation, config: ImageConfig, values_stored: np.nd
     the template's centre (:func:`_seen_axis_offsets`).
     """
     share = obs.visibility.visible_share
-    values, seen = obs.values, obs.window & obs.usable
-    if config.template_recentre:
-        values, seen = _shift_profiles(values, seen, _seen_axis_offsets(obs, config))
     take = obs.samplers.ok & (share >= config.template_min_visible)
     if only_missing:
         take &= ~mask_stored.any(axis=(1, 2))
+    if not take.any():  # nothing to store: skip the re-centring search
+        return values_stored.copy(), mask_stored.copy()
+    values, seen = obs.values, obs.window & obs.usable
+    if config.template_recentre:
+        values, seen = _shift_profiles(values, seen, _seen_axis_offsets(obs, config))
     new = take[:, None, None] & seen
     return np.where(new, values, values_stored), mask_stored | new
 
@@ -459,3 +479,31 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
     new_state = ImageState(templates=tuple(templates), template_mask=tuple(masks), layout=layout)
     return tuple(features), Diagnostics(method=config.method, cameras=tuple(diags), state=new_state,
                                         timings_s=dict(clock.totals))
+
+
+class WindowOutlines(Sequence):
+    """Per camera, the exterior coordinates of the window polygons (for overlays), converted
+    from shapely only when a camera's list is first read.
+
+    ``windows[c]`` is a list of (k, 2) arrays, one per non-empty polygonal window of camera
+    ``c``, in link order; it behaves as a read-only list of such lists.
+    """
+
+    def __init__(self, diagnostics: Diagnostics):
+        self._windows = [cd.visibility.windows for cd in diagnostics.cameras]
+        self._coords: dict[int, list[np.ndarray]] = {}
+
+    def __len__(self) -> int:
+        return len(self._windows)
+
+    def __getitem__(self, c):
+        if isinstance(c, slice):
+            return [self[i] for i in range(*c.indices(len(self)))]
+        c = range(len(self))[c]  # negative indices; IndexError past the end
+        if c not in self._coords:
+            self._coords[c] = [np.asarray(w.exterior.coords) for w in self._windows[c]
+                               if w is not None and not w.is_empty and w.geom_type == "Polygon"]
+        return self._coords[c]
+
+    def __repr__(self) -> str:
+        return f"WindowOutlines({len(self)} cameras)"

@@ -21,7 +21,8 @@ import shapely
 
 from ._config import VisibilityConfig
 
-__all__ = ["Visibility", "pill_outlines", "same_chain", "compute_visibility", "window_masks"]
+__all__ = ["Visibility", "pill_outlines", "same_chain", "compute_visibility", "window_masks", "convex_edges",
+           "inside_polygons"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,3 +146,90 @@ def window_masks(polygons: np.ndarray, points: np.ndarray) -> np.ndarray:
     x = np.where(finite, pts[..., 0], 0.0)
     y = np.where(finite, pts[..., 1], 0.0)
     return shapely.contains_xy(geoms, x, y) & finite
+
+
+def convex_edges(polygons: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Edges of convex polygons padded to one length, oriented so the interior lies to the left.
+
+    Returns:
+        (start, vector, present): (n, V, 2) edge starts and vectors (padding repeats edge 0), and
+        (n,) the polygon is non-empty; None when a polygon is neither empty nor a convex polygon
+        without holes (then the caller falls back to shapely).
+    """
+    geoms = np.asarray(polygons, dtype=object).reshape(-1)
+    n = len(geoms)
+    present = ~shapely.is_empty(geoms)
+    if not present.any():
+        return np.zeros((n, 1, 2)), np.zeros((n, 1, 2)), present
+    if np.any(shapely.get_type_id(geoms[present]) != 3) or np.any(shapely.get_num_interior_rings(geoms[present]) > 0):
+        return None
+    coords, index = shapely.get_coordinates(shapely.get_exterior_ring(geoms), return_index=True)
+    counts = np.bincount(index, minlength=n) - 1  # rings are closed: edges = coordinates - 1
+    if np.any(counts[present] < 3):
+        return None
+    V = int(counts.max())
+    first = np.concatenate([[0], np.cumsum(counts + 1)[:-1]])
+    k = np.arange(V)
+    # Edge k of polygon i runs from coordinate first[i] + k to first[i] + k + 1; padding repeats edge 0.
+    kk = np.where(k[None, :] < counts[:, None], k[None, :], 0)
+    a_idx = np.where(present[:, None], first[:, None] + kk, 0)
+    a = coords[a_idx]
+    e = coords[np.where(present[:, None], a_idx + 1, 0)] - a
+    # Orientation from the signed area; a clockwise ring is flipped to counter-clockwise.
+    cross_ae = a[..., 0] * e[..., 1] - a[..., 1] * e[..., 0]
+    valid_edge = k[None, :] < counts[:, None]
+    area2 = np.where(valid_edge, cross_ae, 0.0).sum(-1)
+    if np.any(area2[present] == 0):
+        return None
+    sign = np.where(area2 < 0, -1.0, 1.0)[:, None, None]
+    a = np.where(sign < 0, a + e, a)
+    e = e * sign
+    # Convex: every turn between consecutive edges is to the left (or straight).
+    nxt = np.roll(e, -1, axis=1)
+    nxt = np.where((k[None, :] == counts[:, None] - 1)[..., None], e[:, :1], nxt)
+    turn = e[..., 0] * nxt[..., 1] - e[..., 1] * nxt[..., 0]
+    if np.any((turn < 0) & valid_edge & present[:, None]):
+        return None
+    return a, e, present
+
+
+def inside_polygons(polygons: np.ndarray, points: np.ndarray, *, tol: float = 1e-9, edges=False) -> np.ndarray:
+    """(..., n) True where each point lies strictly inside each of ``n`` convex polygons.
+
+    The same predicate as ``shapely.contains_xy`` (boundary points are outside, NaN points are
+    outside every polygon), computed in NumPy from edge cross products for convex polygons
+    (pill outlines are simplified convex hulls); points within ``tol`` (relative) of an edge line
+    and non-convex input are decided by shapely itself.
+
+    Args:
+        polygons: (n,) polygons (empty ones contain nothing).
+        points: (..., 2) positions (x, y).
+        edges: ``convex_edges(polygons)`` when already computed (False: compute them here).
+    """
+    geoms = np.asarray(polygons, dtype=object).reshape(-1)
+    pts = np.asarray(points, float)
+    lead = pts.shape[:-1]
+    flat = pts.reshape(-1, 2)
+    finite = np.all(np.isfinite(flat), -1)
+    x = np.where(finite, flat[:, 0], 0.0)
+    y = np.where(finite, flat[:, 1], 0.0)
+    edges = convex_edges(geoms) if edges is False else edges
+    if edges is None:
+        shapely.prepare(geoms)
+        out = shapely.contains_xy(geoms[None, :], x[:, None], y[:, None]) & finite[:, None]
+        return out.reshape(lead + (len(geoms),))
+    a, e, present = edges
+    # cross(e, p - a) > 0 on the interior side of every edge: (points, n, V).
+    c = (e[None, :, :, 0] * (y[:, None, None] - a[None, :, :, 1])
+         - e[None, :, :, 1] * (x[:, None, None] - a[None, :, :, 0]))
+    m = c.min(-1)
+    out = (m > 0) & present[None, :] & finite[:, None]
+    # Near an edge, rounding could differ from GEOS's robust predicate: ask shapely there.
+    extent = np.abs(a).max((1, 2))[None, :] + 1.0
+    scale = np.abs(e).max((1, 2))[None, :] * (np.abs(x)[:, None] + np.abs(y)[:, None] + extent)
+    near = (np.abs(m) <= tol * scale) & present[None, :] & finite[:, None]
+    if near.any():
+        p, g = np.nonzero(near)
+        shapely.prepare(geoms)
+        out[p, g] = shapely.contains_xy(geoms[g], x[p], y[p])
+    return out.reshape(lead + (len(geoms),))

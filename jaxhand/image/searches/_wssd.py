@@ -28,7 +28,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from .._config import SearchConfig
-from .._regression import plls
+from .._regression import _normal_equations, plls, solve_2x2
 from ._common import (
     Edges,
     Profiles,
@@ -85,15 +85,22 @@ def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tupl
     yhat = np.zeros((L, M), int)
     fit_ok = curve_ok.sum(-1) >= 2
     active = fit_ok.copy()
+    # The PLLS mask is the same every iteration: its normal matrix is built once (the same
+    # arithmetic as :func:`plls`, so the lines are bit for bit the same).
+    w = curve_ok.astype(float)
+    xb = np.broadcast_to(x, (L, M))
+    R, _ = _normal_equations(xb, w, w)
+    li, mi = np.arange(L)[:, None], np.arange(M)[None, :]
     for _ in range(max_iter):
         if not active.any():
             break
         k = yhat + S
-        up = np.take_along_axis(Wf, np.minimum(k + 1, K - 1)[..., None], -1)[..., 0]
-        down = np.take_along_axis(Wf, np.maximum(k - 1, 0)[..., None], -1)[..., 0]
+        up = Wf[li, mi, np.minimum(k + 1, K - 1)]
+        down = Wf[li, mi, np.maximum(k - 1, 0)]
         g = up - down
         y = yhat - np.sign(g)
-        c, ok = plls(x, y, curve_ok)
+        b = w * np.where(curve_ok, y, 0.0)
+        c, ok = solve_2x2(R, np.stack([b.sum(-1), (b * xb).sum(-1)], -1))
         new = np.clip(np.rint(c[:, 0, None] + c[:, 1, None] * x), -S, S).astype(int)
         step = active & ok
         changed = np.any((new != yhat) & curve_ok, axis=-1)

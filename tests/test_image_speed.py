@@ -1,0 +1,164 @@
+"""The image front end's fast paths give the same answers as the straightforward shapely / NumPy
+versions they replace: the point-in-outline test against shapely unions, the WSSD valley descent
+against a plain PLLS loop, and the lazily converted window outlines against the eager list."""
+
+import numpy as np
+import pytest
+import shapely
+
+from jaxhand.cli_track import image_extractor
+from jaxhand.image import ImageConfig, WindowOutlines, as_grey, extract_features
+from jaxhand.image._extract import _observe, _off_other_links, _off_other_links_union
+from jaxhand.image._regression import plls
+from jaxhand.image._visibility import convex_edges, inside_polygons, same_chain
+from jaxhand.image.searches._wssd import _descend
+from jaxhand.render import RenderConfig, make_preset, render_frame
+
+
+def _frames(name, frames, picks):
+    seq = make_preset(name, frames=frames)
+    out = []
+    for i in picks:
+        q = seq.q[i]
+        images = [render_frame(seq.model, cam, q, RenderConfig(antialias=3)).image for cam in seq.cameras]
+        out.append((q, images))
+    return seq, out
+
+
+@pytest.fixture(scope="module")
+def two_fingers():
+    # Orthographic, the fingers crossing in the middle of the motion.
+    return _frames("two_finger_occlusion", 80, [0, 30, 40, 55])
+
+
+@pytest.fixture(scope="module")
+def hand27():
+    # 27 DOF under two perspective cameras: each end circle has its own radius.
+    return _frames("two_camera_hand", 40, [0, 20, 39])
+
+
+def _observations(data, q_offset_deg=0.0):
+    seq, frames = data
+    config = ImageConfig()
+    chain = same_chain(seq.model.link_frame, seq.model.ancestors)
+    rng = np.random.default_rng(0)
+    for q, images in frames:
+        q = q + np.where(seq.model.is_angle, np.radians(q_offset_deg) * rng.standard_normal(len(q)), 0.0)
+        for cam, image in zip(seq.cameras, images):
+            yield _observe(as_grey(image), seq.model, cam, q, chain, config)
+
+
+def _probe_points(obs):
+    """Every profile sample, the background probes either side of every profile (1.1-1.4 radii)
+    and points along each link's axis and outline edges: many lie on or near another outline."""
+    s = obs.samplers
+    at = np.array([-1.4, -1.25, -1.1, -1.0, 1.0, 1.1, 1.25, 1.4])
+    probes = s.centres[:, :, None, :] + (s.radius_px[:, None] * at)[:, None, :, None] * s.normal[:, None, None, :]
+    L = len(s.ok)
+    return np.concatenate([s.points.reshape(L, -1, 2), probes.reshape(L, -1, 2)], 1)
+
+
+@pytest.mark.parametrize("data_name", ["two_fingers", "hand27"])
+@pytest.mark.parametrize("offset_deg", [0.0, 6.0])
+def test_off_other_links_equals_the_shapely_union(request, data_name, offset_deg):
+    data = request.getfixturevalue(data_name)
+    n_off = n_on = 0
+    for obs in _observations(data, offset_deg):
+        pts = _probe_points(obs)
+        fast = _off_other_links(obs, pts)
+        ref = _off_other_links_union(obs, pts)
+        np.testing.assert_array_equal(fast, ref)
+        n_off, n_on = n_off + int(fast.sum()), n_on + int((~fast).sum())
+        # a subset of links (the tips' use)
+        tl = np.array([len(obs.start) - 1, 0])
+        np.testing.assert_array_equal(_off_other_links(obs, pts[tl], tl), _off_other_links_union(obs, pts[tl], tl))
+    assert n_off > 100 and n_on > 100  # the test covers both answers
+
+
+def test_inside_polygons_equals_contains_xy():
+    rng = np.random.default_rng(1)
+    circle = np.stack([np.cos(np.linspace(0, 2 * np.pi, 17)[:-1]), np.sin(np.linspace(0, 2 * np.pi, 17)[:-1])], -1)
+    convex = [shapely.Polygon(c + r * circle) for c, r in (((10.0, 10.0), 5.0), ((14.0, 12.0), 3.0), ((0.0, 0.0), 1.0))]
+    cw = shapely.Polygon(np.array([[0.0, 0.0], [0.0, 4.0], [4.0, 4.0], [4.0, 0.0]]))  # clockwise square
+    polys = np.array(convex + [cw, shapely.Polygon()], dtype=object)
+    pts = np.concatenate([rng.uniform(-2, 20, (3000, 2)),
+                          shapely.get_coordinates(polys),        # vertices: on the boundary
+                          [[2.0, 0.0], [4.0, 2.0], [2.0, 2.0], [np.nan, 1.0]]])
+    shapely.prepare(polys)
+    ref = shapely.contains_xy(polys[None, :], np.nan_to_num(pts[:, 0])[:, None], np.nan_to_num(pts[:, 1])[:, None])
+    ref &= np.all(np.isfinite(pts), -1)[:, None]
+    got = inside_polygons(polys, pts)
+    np.testing.assert_array_equal(got, ref)
+    assert got[:-4].any() and not got[-4:-2].any() and got[-2, 3] and not got[-1].any()
+    # a non-convex polygon is left to shapely
+    ell = np.array([shapely.Polygon([(0, 0), (4, 0), (4, 1), (1, 1), (1, 4), (0, 4)])], dtype=object)
+    assert convex_edges(ell) is None
+    np.testing.assert_array_equal(inside_polygons(ell, np.array([[0.5, 3.0], [3.0, 3.0], [3.0, 0.5]])),
+                                  [[True], [False], [True]])
+
+
+def _descend_reference(W, curve_ok, S, max_iter):
+    """The valley descent of thesis §4.3.2 written plainly, one PLLS call per iteration."""
+    L, M, K = W.shape
+    x = np.arange(M, dtype=float)
+    finite = np.isfinite(W)
+    wall = np.where(finite, W, -np.inf).max(initial=0.0) * 2 + 1.0
+    Wf = np.where(finite, W, wall)
+    yhat = np.zeros((L, M), int)
+    fit_ok = curve_ok.sum(-1) >= 2
+    active = fit_ok.copy()
+    for _ in range(max_iter):
+        if not active.any():
+            break
+        k = yhat + S
+        up = np.take_along_axis(Wf, np.minimum(k + 1, K - 1)[..., None], -1)[..., 0]
+        down = np.take_along_axis(Wf, np.maximum(k - 1, 0)[..., None], -1)[..., 0]
+        c, ok = plls(x, yhat - np.sign(up - down), curve_ok)
+        new = np.clip(np.rint(c[:, 0, None] + c[:, 1, None] * x), -S, S).astype(int)
+        step = active & ok
+        changed = np.any((new != yhat) & curve_ok, axis=-1)
+        yhat = np.where(step[:, None], new, yhat)
+        fit_ok = fit_ok & np.where(active, ok, True)
+        active = step & changed
+    return yhat, fit_ok
+
+
+def test_wssd_descent_equals_the_plain_loop():
+    rng = np.random.default_rng(2)
+    L, M, S = 7, 8, 6
+    shifts = np.arange(-S, S + 1)
+    centre = rng.uniform(-4, 4, (L, 1)) + rng.uniform(-0.3, 0.3, (L, 1)) * np.arange(M)
+    W = (shifts[None, None, :] - centre[..., None]) ** 2 + rng.uniform(0, 3, (L, M, 2 * S + 1))
+    W[0, :, :2] = np.inf  # no terms counted at some shifts
+    curve_ok = rng.uniform(size=(L, M)) > 0.2
+    curve_ok[1] = False  # no profile
+    curve_ok[2, 1:] = False  # one profile: no line
+    yhat, ok = _descend(W, curve_ok, S, 20)
+    y_ref, ok_ref = _descend_reference(W, curve_ok, S, 20)
+    np.testing.assert_array_equal(yhat, y_ref)
+    np.testing.assert_array_equal(ok, ok_ref)
+    assert ok[0] and not ok[1] and not ok[2] and np.any(yhat != 0)
+
+
+def test_window_outlines_are_the_eager_coordinates(hand27):
+    seq, frames = hand27
+    q, images = frames[1]
+    config = ImageConfig(method="gaussian")
+    _, diag = extract_features(images, seq.model, seq.cameras, q, config)
+    eager = [[np.asarray(w.exterior.coords) for w in cd.visibility.windows
+              if w is not None and not w.is_empty and w.geom_type == "Polygon"] for cd in diag.cameras]
+    lazy = WindowOutlines(diag)
+    assert len(lazy) == len(eager) == 2
+    for c in (0, 1, -1):
+        assert len(lazy[c]) == len(eager[c]) > 0
+        for a, b in zip(lazy[c], eager[c]):
+            np.testing.assert_array_equal(a, b)
+    assert [len(w) for w in lazy] == [len(w) for w in eager] and len(lazy[:1]) == 1
+    with pytest.raises(IndexError):
+        lazy[2]
+    # what the tracker's front end hands to the overlay video
+    extract = image_extractor(seq.model, seq.cameras, config)
+    _, _, info = extract(images, q, None)
+    windows = info.get("windows")
+    assert len(windows) == 2 and all(np.asarray(p).shape[-1] == 2 for p in windows[0])
+    np.testing.assert_array_equal(np.concatenate(windows[1]), np.concatenate(eager[1]))
