@@ -91,7 +91,11 @@ def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tupl
     xb = np.broadcast_to(x, (L, M))
     R, _ = _normal_equations(xb, w, w)
     li, mi = np.arange(L)[:, None], np.arange(M)[None, :]
-    for _ in range(max_iter):
+    # Each link's next line depends on its own displacements only, so a link whose line comes
+    # back to an earlier one cycles from there on: its line after ``max_iter`` steps is known at
+    # once, and the link leaves the loop (the result is the same as iterating on).
+    history = [yhat]
+    for n in range(max_iter):
         if not active.any():
             break
         k = yhat + S
@@ -107,6 +111,15 @@ def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tupl
         yhat = np.where(step[:, None], new, yhat)
         fit_ok = fit_ok & np.where(active, ok, True)
         active = step & changed
+        seen = np.all(np.stack(history) == yhat, axis=-1) & active  # (steps so far, links)
+        history.append(yhat)
+        if seen.any():
+            yhat = yhat.copy()
+            t = n + 1
+            for link in np.nonzero(seen.any(0))[0]:
+                t0 = int(np.nonzero(seen[:, link])[0][0])
+                yhat[link] = history[t0 + (max_iter - t0) % (t - t0)][link]
+            active = active & ~seen.any(0)
     return yhat, fit_ok
 
 
