@@ -113,10 +113,17 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
                 & (c[None, :, 1] <= b[:, None, 3]) & (c[None, :, 3] >= b[:, None, 1]))
         nearer = (mean_depth[None, :] < mean_depth[:, None]) & ~np.asarray(chain, bool) & ~empty[None, :] & meet
         none = shapely.Polygon()
-        occl = np.array([shapely.union_all(outlines[nearer[i]]) if nearer[i].any() else none for i in range(L)],
-                        dtype=object)
-        occl_grown = np.array([shapely.union_all(covers[nearer[i]]) if nearer[i].any() else none for i in range(L)],
-                              dtype=object)
+        # Links with the same occluders (the phalanges of one finger behind another, often) share
+        # one union of them.
+        unions: dict[bytes, tuple] = {}
+        occl = np.empty(L, dtype=object)
+        occl_grown = np.empty(L, dtype=object)
+        for i in range(L):
+            key = nearer[i].tobytes()
+            if key not in unions:
+                unions[key] = ((shapely.union_all(outlines[nearer[i]]), shapely.union_all(covers[nearer[i]]))
+                               if nearer[i].any() else (none, none))
+            occl[i], occl_grown[i] = unions[key]
         visible = shapely.difference(outlines, occl)
         windows = shapely.difference(grown, occl_grown)
     else:
