@@ -11,12 +11,12 @@ sequence.
 
     .venv/bin/python benchmarks/tracking.py            # all sequences
     .venv/bin/python benchmarks/tracking.py --quick    # fewer frames, no JSON
-    .venv/bin/python benchmarks/tracking.py --sweep    # two-finger sequence at 6 frame rates
+    .venv/bin/python benchmarks/tracking.py --sweep    # two-finger motion at 6 speeds
 
-``--sweep`` measures how much one number depends on the sampling: the same two-finger motion
-rendered at 60 to 120 frames (the frame rate changes, the motion does not), each tracked with the
-image front end; it prints the mean joint error and frames before loss per run and saves
-``benchmarks/results/tracking_sweep.json``.
+``--sweep`` measures how much one number depends on the speed of the motion: the same two-finger
+path played over 60 to 120 frames at 25 frames/s (2.4 to 4.8 s, so fewer frames is faster motion),
+each tracked with the image front end; it prints the mean joint error and frames before loss per
+run and saves ``benchmarks/results/tracking_sweep.json``.
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ SWEEP_FRAMES = (60, 70, 80, 90, 100, 120)
 
 
 def sweep(name: str, args) -> int:
-    """Track one experiment's motion sampled at each of :data:`SWEEP_FRAMES` frame counts."""
+    """Track one experiment's motion played over each of :data:`SWEEP_FRAMES` frame counts."""
     _, method, solver, steps, _ = next(e for e in EXPERIMENTS if e[0] == name)
     method, solver = args.method or method, args.solver or solver
     rows = []
@@ -120,7 +120,7 @@ def main(argv=None) -> int:
     parser.add_argument("--theta", type=float, default=0.85, help="g-h-k discount factor")
     parser.add_argument("--size", default="320x240", help="image size WxH")
     parser.add_argument("--frames", type=int, help="frames per sequence (default: each experiment's own)")
-    parser.add_argument("--sweep", action="store_true", help="the two-finger motion (or --only) at 6 frame rates")
+    parser.add_argument("--sweep", action="store_true", help="the two-finger motion (or --only) at 6 speeds")
     args = parser.parse_args(argv)
     if args.sweep:
         RESULTS.mkdir(parents=True, exist_ok=True)
