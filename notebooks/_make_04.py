@@ -148,7 +148,7 @@ md(r"""
 80 frames at 25 fps. The tracker starts at the true first pose; from then on it sees only the rendered images.
 Each line below gives the filtered estimate's mean and max joint error over all frames and joints, its mean 2-D
 tip error, the same for the raw solver output, the number of frames the tracker flagged as lost (residual RMS
-above 6 px or fewer than 30 % of the features found), and the wall time.
+above 6 px or fewer than 15 % of the feature slots valid), and the wall time.
 """)
 
 code(r"""
