@@ -43,8 +43,13 @@ class image_extractor:  # noqa: N801 (used like a function: image_extractor(mode
         return features, diag.state, info
 
     def refresh(self, images, q, state):
+        """Templates re-taken at the solved pose ``q``; a search that keeps no templates (all but
+        "wssd") gets ``state`` back untouched, at no cost."""
         from .image import capture_templates
+        from .image.searches import TEMPLATE_SEARCHES
 
+        if self.config.method not in TEMPLATE_SEARCHES:
+            return state
         return capture_templates(images, self.model, self.cameras, np.asarray(q), self.config, state)
 
 

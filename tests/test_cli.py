@@ -47,3 +47,20 @@ def test_track_a_synth_folder_end_to_end(tmp_path, capsys):
     rows = (tmp_path / "out" / "angles.csv").read_text().splitlines()
     assert rows[0].startswith("frame,time_s,middle_mcp_deg") and len(rows) == 7
     assert np.isfinite(np.array([r.split(",")[2:-2] for r in rows[1:]], float)).all()
+
+
+def test_image_extractor_refreshes_templates_only_for_template_searches():
+    from jaxhand.cli_track import image_extractor
+    from jaxhand.render import RenderConfig, make_preset, render_frame
+
+    seq = make_preset("two_finger_occlusion", frames=4, size=(160, 120))
+    images = [render_frame(seq.model, seq.cameras[0], seq.q[1], RenderConfig()).image]
+    for method in ("gaussian", "wssd"):
+        extract = image_extractor(seq.model, seq.cameras, jh.ImageConfig(method=method))
+        _, state, _ = extract(images, seq.q[0], None)
+        refreshed = extract.refresh(images, seq.q[1], state)
+        if method == "gaussian":
+            assert refreshed is state  # nothing to store: no capture at all
+        else:
+            assert refreshed is not state and refreshed.template_valid[0].all()
+            assert not np.array_equal(refreshed.templates[0], state.templates[0])
