@@ -8,11 +8,21 @@ import shapely
 
 from jaxhand.cli_track import image_extractor
 from jaxhand.image import ImageConfig, WindowOutlines, as_grey, extract_features
-from jaxhand.image._extract import _observe, _off_other_links, _off_other_links_union
+from jaxhand.image._extract import _observe, _off_other_links
 from jaxhand.image._regression import plls
-from jaxhand.image._visibility import convex_edges, inside_polygons, same_chain
+from jaxhand.image._visibility import convex_edges, inside_polygons, same_chain, window_masks
 from jaxhand.image.searches._wssd import _descend
 from jaxhand.render import RenderConfig, make_preset, render_frame
+
+
+def _off_other_links_union(obs, points, links=None):
+    """The reference for :func:`_off_other_links`: one shapely union of the other outlines per link."""
+    outlines = obs.visibility.outlines
+    L = len(outlines)
+    links = np.arange(L) if links is None else np.asarray(links, int)
+    present = ~shapely.is_empty(outlines)
+    others = np.array([shapely.union_all(outlines[present & (np.arange(L) != i)]) for i in links], dtype=object)
+    return ~window_masks(others, points)
 
 
 def _frames(name, frames, picks):

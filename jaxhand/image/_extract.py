@@ -22,7 +22,6 @@ from collections.abc import Sequence
 
 import jax.numpy as jnp
 import numpy as np
-import shapely
 
 from .._errors import InputError
 from ..camera import Perspective, as_rig
@@ -299,17 +298,6 @@ def _off_other_links(obs: _Observation, points: np.ndarray, links: np.ndarray | 
     inside = inside_polygons(outlines, pts, edges=obs.outline_edges)  # (links, ..., L): each point, each outline
     own = np.arange(L) == links.reshape((-1,) + (1,) * (pts.ndim - 1))
     return ~np.any(inside & ~own, axis=-1)
-
-
-def _off_other_links_union(obs: _Observation, points: np.ndarray, links: np.ndarray | None = None) -> np.ndarray:
-    """:func:`_off_other_links` the slow way, one shapely union of the other outlines per link (the
-    reference the tests compare it with)."""
-    outlines = obs.visibility.outlines
-    L = len(outlines)
-    links = np.arange(L) if links is None else np.asarray(links, int)
-    present = ~shapely.is_empty(outlines)
-    others = np.array([shapely.union_all(outlines[present & (np.arange(L) != i)]) for i in links], dtype=object)
-    return ~window_masks(others, points)
 
 
 def _against_background(obs: _Observation, reach: tuple[float, ...] = (1.1, 1.25, 1.4)) -> np.ndarray:
