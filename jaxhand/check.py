@@ -64,43 +64,14 @@ def central_difference_jacobian(f_batch, q, eps: float = 1e-6) -> np.ndarray:
     return np.moveaxis(diff, 0, -1)
 
 
-def _quat_rate_matrix(quat):
-    """E with omega = 2 E qdot for q = (w, x, y, z), evaluated at the unit quaternion."""
-    n = jnp.linalg.norm(quat)
-    w, x, y, z = quat / n
-    return jnp.array([[-x, w, -z, y], [-y, z, w, -x], [-z, -y, x, w]]) / n
-
-
 def geometric_jacobian(model: Model, q) -> Float[Array, "p 3 nq"]:
-    """d p_world / d q of every link end from the joint axes (DigitEyes eqs. 8-10)."""
-    q = jnp.asarray(q)
-    pose = _pose(model, q)
-    p, attached = keypoints(model, q)
-    z, o = pose.frames[:, :3, 2], pose.frames[:, :3, 3]
-    above = jnp.asarray(model.ancestors[attached])                        # (p, frames)
-    revolute = jnp.cross(z[None], p[:, None] - o[None])                 # (p, frames, 3)
-    prismatic = jnp.broadcast_to(z[None], revolute.shape)
-    is_rev = np.array([k == "revolute" for k in model.joint_kinds])
-    cols = jnp.where(is_rev[None, :, None], revolute, prismatic) * above[..., None]
-    J = jnp.zeros((p.shape[0], 3, model.n_q), dtype=p.dtype)
-    for f, j in enumerate(model.q_index):  # static scatter of frame columns onto q entries
-        if j >= 0:
-            J = J.at[:, :, j].add(cols[:, f])
-    if model.base_kind != "fixed":
-        from .kinematics import base_pose
+    """d p_world / d q of every link end from the joint axes (DigitEyes eqs. 8-10): the solver's
+    :func:`jaxhand.residuals.point_jacobian` at the link ends."""
+    from .residuals import point_jacobian
 
-        T_root = base_pose(model, q)
-        M = model.T_world_mount[:3, :3]
-        r = p - T_root[:3, 3]
-        if model.base_kind == "free":
-            omega = M @ (2.0 * _quat_rate_matrix(q[:4]))                 # (3, 4)
-            J = J.at[:, :, :4].set(jnp.cross(omega.T[None], r[:, None]).transpose(0, 2, 1))
-            J = J.at[:, :, 4:7].set(jnp.broadcast_to(M, (p.shape[0], 3, 3)))
-        else:
-            J = J.at[:, :, 0].set(jnp.broadcast_to(M[:, 0], (p.shape[0], 3)))
-            J = J.at[:, :, 1].set(jnp.broadcast_to(M[:, 1], (p.shape[0], 3)))
-            J = J.at[:, :, 2].set(jnp.cross(M[:, 2][None], r))
-    return J
+    q = jnp.asarray(q)
+    p, attached = keypoints(model, q)
+    return point_jacobian(model, q, _pose(model, q).frames, p, attached)
 
 
 @eqx.filter_jit
