@@ -41,15 +41,17 @@ from jaxhand.track import TrackConfig, Tracker, exact_extractor  # noqa: E402
 from jaxhand.viz import plot_joint_angles  # noqa: E402
 
 # (sequence, front-end method, solver, steps per frame, frames, re-extractions per frame): the
-# documents' choice of method for each experiment. Frames: each preset's motion sampled at 25 fps
-# (10 fps for the DigitEyes ones). Re-extraction (TrackConfig.reextract) is what the occlusion
-# sequences need; the open 21-DOF hand does better without it (2.50 deg at 91 frames/s against
-# 3.04 deg at 44 on the run quoted in the README), index + thumb and the mouse much worse.
+# documents' choice of method for each experiment, except the two-camera hand, which runs the
+# thesis's proposed method (WSSD) rather than an edge search like DigitEyes' ("gaussian": see
+# --method). Frames: each preset's motion sampled at 25 fps (10 fps for the DigitEyes ones).
+# Re-extraction (TrackConfig.reextract) is what the occlusion sequences need; the open 21-DOF hand
+# does better without it (2.50 deg at 91 frames/s against 3.04 deg at 44 on the run quoted in the
+# README), index + thumb and the mouse much worse.
 EXPERIMENTS = [
     ("two_finger_occlusion", "wssd", "bounded", 20, 80, 1),      # thesis §6.1: the proposed method
     ("full_hand_spread_flex", "imwplls", "bounded", 20, 100, 0),  # thesis §6.2.2: alternative method, bounded
     ("index_thumb_grasp", "imwplls", "lm", 20, 120, 1),          # thesis §6.2.1 (real images there)
-    ("two_camera_hand", "gaussian", "lm", 20, 100, 1),           # DigitEyes §6.2: 27 DOF, two cameras
+    ("two_camera_hand", "wssd", "bounded", 20, 100, 1),          # DigitEyes §6.2: 27 DOF, two cameras
     ("mouse3d", "gaussian", "lm", 20, 150, 1),                   # DigitEyes §6.1: 3D mouse, one camera
 ]
 
@@ -76,6 +78,7 @@ def run(seq, images, extract, config: TrackConfig) -> dict:
         "solved_tip_error_mean_px": acc_solved["tip_error_px"]["mean"],
         "tip_error_mean_px": acc["tip_error_px"]["mean"], "tip_error_max_px": acc["tip_error_px"]["max"],
         "frames": len(reports), "frames_before_loss": lost[0] if lost else len(reports), "lost_frames": len(lost),
+        "theta_per_frame": tracker.theta,
         "fps_end_to_end": len(steady) / sum(total), "compile_first_frame_s": sum(reports[0].timings_s.values()),
         "median_ms": {s: 1e3 * float(np.median([r.timings_s.get(s, 0.0) for r in steady])) for s in stages},
         "q_filtered": q_f, "q_solved": q_s,
@@ -122,7 +125,9 @@ def main(argv=None) -> int:
     parser.add_argument("--solver", help="solver for every sequence (default: each experiment's own)")
     parser.add_argument("--robust", type=int, help="IRLS passes per frame (default: TrackConfig's)")
     parser.add_argument("--reextract", type=int, help="front-end re-extractions per frame (default: TrackConfig's)")
-    parser.add_argument("--theta", type=float, default=0.85, help="g-h-k discount factor")
+    parser.add_argument("--theta", type=float, default=0.85,
+                        help="g-h-k discount factor per frame at 25 frames/s (TrackConfig.theta_rate_hz): 0.85 is "
+                             "0.666 per frame on the 10 frames/s DigitEyes sequences")
     parser.add_argument("--size", default="320x240", help="image size WxH")
     parser.add_argument("--frames", type=int, help="frames per sequence (default: each experiment's own)")
     parser.add_argument("--sweep", action="store_true", help="the two-finger motion (or --only) at 6 speeds")
@@ -158,14 +163,14 @@ def main(argv=None) -> int:
                                   title=f"{name} ({method}, {solver}): filtered (solid) vs truth (dotted)")
         out["sequences"][name] = entry
     head = (f"{'sequence':22s} {'features':12s} {'solver':8s} {'mean°':>6s} {'max°':>6s} {'tip px':>7s} "
-            f"{'raw°':>6s} "
+            f"{'raw°':>6s} {'θ/frame':>7s} "
             f"{'before loss':>11s} {'fps':>7s}  median ms per stage")
     print(head)
     print("-" * len(head))
     for name, label, solver, r in rows:
         stages = ", ".join(f"{k} {v:.2f}" for k, v in r["median_ms"].items())
         print(f"{name:22s} {label:12s} {solver:8s} {r['joint_error_mean_deg']:6.2f} {r['joint_error_max_deg']:6.1f} "
-              f"{r['tip_error_mean_px']:7.2f} {r['solved_joint_error_mean_deg']:6.2f} "
+              f"{r['tip_error_mean_px']:7.2f} {r['solved_joint_error_mean_deg']:6.2f} {r['theta_per_frame']:7.3f} "
               f"{r['frames_before_loss']:5d}/{r['frames']:<5d} "
               f"{r['fps_end_to_end']:7.1f}  {stages}")
     if not args.quick:

@@ -66,7 +66,10 @@ def register(sub) -> None:
     p.add_argument("--method", default="wssd", help="feature search (see jaxhand.image.SEARCH_NAMES)")
     p.add_argument("--solver", default="bounded", help="gn | gn_eta | lm_fixed | lm | bounded")
     p.add_argument("--steps", type=int, default=20, help="solver iterations per frame (1: thesis fast mode)")
-    p.add_argument("--theta", type=float, default=0.85, help="g-h-k discount factor")
+    p.add_argument("--theta", type=float, default=0.85,
+                   help="g-h-k discount factor per frame at --theta-rate frames/s (scaled to the input's rate)")
+    p.add_argument("--theta-rate", type=float, default=25.0,
+                   help="frame rate (Hz) at which --theta holds; 0: --theta is per frame at any rate")
     p.add_argument("--no-filter", action="store_true", help="report the raw solve, predict with it")
     p.add_argument("--fps", type=float, default=25.0, help="frame rate of image folders")
     p.add_argument("--truth", help="ground truth: a synth ground_truth.json (default: the synth folder's)")
@@ -127,7 +130,8 @@ def _track(args) -> int:
         q0 = np.asarray(synth.q[0])
     else:
         q0 = parse_pose(model, args.init)
-    config = TrackConfig(solver=args.solver, max_steps=args.steps, theta=args.theta, filter=not args.no_filter)
+    config = TrackConfig(solver=args.solver, max_steps=args.steps, theta=args.theta,
+                         theta_rate_hz=args.theta_rate or None, filter=not args.no_filter)
     extract = image_extractor(model, cameras, ImageConfig(method=args.method))
     summary = track_sequence(model, cameras, sources, q0, args.out, extract, config=config, truth=truth,
                              video=not args.no_video, max_frames=args.max_frames)

@@ -139,6 +139,7 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
             vw.close()
     elapsed = time.perf_counter() - started
     summary: dict = {"frames": len(reports), "fps_input": fps, "config": dict(vars(config)),
+                     "theta_per_frame": tracker.theta,
                      "initial_pose": pose_to_dict(model, q0)}
     if reports:
         stages = sorted({k for r in reports for k in r.timings_s})

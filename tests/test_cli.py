@@ -1,6 +1,7 @@
 import json
 
 import numpy as np
+import pytest
 
 import jaxhand as jh
 from jaxhand.cli import main
@@ -39,11 +40,14 @@ def test_sketch_writes_pngs(tmp_path, capsys):
 
 def test_track_a_synth_folder_end_to_end(tmp_path, capsys):
     assert main(["synth", "two_finger_occlusion", str(tmp_path / "seq"), "--frames", "6", "--size", "160x120"]) == 0
-    assert main(["track", str(tmp_path / "seq"), "--out", str(tmp_path / "out"), "--method", "gaussian"]) == 0
+    assert main(["track", str(tmp_path / "seq"), "--out", str(tmp_path / "out"), "--method", "gaussian",
+                 "--theta-rate", "10"]) == 0
     out = capsys.readouterr().out
     assert "tracked 6 frames of two_fingers" in out
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["frames"] == 6 and "accuracy_filtered" in summary
+    # 0.85 per frame at 10 frames/s, the synth folder's 25 frames/s: 0.85 ** 0.4
+    assert summary["theta_per_frame"] == pytest.approx(0.937060, abs=1e-6)
     rows = (tmp_path / "out" / "angles.csv").read_text().splitlines()
     assert rows[0].startswith("frame,time_s,middle_mcp_deg") and len(rows) == 7
     assert np.isfinite(np.array([r.split(",")[2:-2] for r in rows[1:]], float)).all()

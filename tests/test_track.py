@@ -114,6 +114,18 @@ def test_tracker_input_errors(seq):
         tracker.step(tracker.init(seq.q[0]), [np.zeros((4, 4), np.uint8)] * 2)
     with pytest.raises(jh.InputError, match="theta must lie in"):
         TrackConfig(theta=1.5)
+    with pytest.raises(jh.InputError, match="theta_rate_hz must be > 0"):
+        TrackConfig(theta_rate_hz=0.0)
+
+
+def test_theta_holds_at_its_frame_rate_and_scales_to_others(seq):
+    extract = oracle(seq.model, seq.cameras, seq.q)
+    # 0.85 per frame at 25 frames/s forgets as much per second as 0.85 ** 2.5 = 0.6663 at 10 frames/s
+    assert Tracker(seq.model, seq.cameras, extract, dt_s=0.04).theta == pytest.approx(0.85, abs=1e-12)
+    assert Tracker(seq.model, seq.cameras, extract, dt_s=0.1).theta == pytest.approx(0.666112, abs=1e-6)
+    assert Tracker(seq.model, seq.cameras, extract, TrackConfig(theta=0.5, theta_rate_hz=10.0),
+                   dt_s=0.05).theta == pytest.approx(0.7071068, abs=1e-7)
+    assert Tracker(seq.model, seq.cameras, extract, TrackConfig(theta_rate_hz=None), dt_s=0.1).theta == 0.85
 
 
 def test_gate_keeps_a_misplaced_feature_from_pulling_the_first_solve(seq):

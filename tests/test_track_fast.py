@@ -163,7 +163,7 @@ def _reference_step(tracker, state, features):
         errors = feature_errors(tracker.model, tracker.cameras, tuple(features), result.q, fit_config.link_fractions)
         weighted = reweight(tuple(features), errors, cfg.robust_scale_px)
         result = jh.fit(tracker.model, tracker.cameras, weighted, result.q, solver=cfg.solver, config=fit_config)
-    filtered, ghk = _filter_step(tracker.model, state.ghk, result.q, jnp.asarray(cfg.theta),
+    filtered, ghk = _filter_step(tracker.model, state.ghk, result.q, jnp.asarray(tracker.theta),
                                  jnp.asarray(tracker.dt_s), cfg.filter)
     return result, np.asarray(filtered), ghk
 
