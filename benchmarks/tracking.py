@@ -12,11 +12,13 @@ sequence.
     .venv/bin/python benchmarks/tracking.py            # all sequences
     .venv/bin/python benchmarks/tracking.py --quick    # fewer frames, no JSON
     .venv/bin/python benchmarks/tracking.py --sweep    # two-finger motion at 6 speeds
+    .venv/bin/python benchmarks/tracking.py --sweep --only two_camera_hand
 
 ``--sweep`` measures how much one number depends on the speed of the motion: the same two-finger
-path played over 60 to 120 frames at 25 frames/s (2.4 to 4.8 s, so fewer frames is faster motion),
-each tracked with the image front end; it prints the mean joint error and frames before loss per
-run and saves ``benchmarks/results/tracking_sweep.json``.
+path (or ``--only``'s) played over 60 to 120 frames at the preset's frame rate (two fingers: 2.4 to
+4.8 s at 25 frames/s, so fewer frames is faster motion), each tracked with the image front end; it
+prints the mean joint error and frames before loss per run and saves
+``benchmarks/results/tracking_sweep_<sequence>.json``.
 """
 
 from __future__ import annotations
@@ -111,7 +113,7 @@ def sweep(name: str, args) -> int:
     out = {"environment": {**environment(), "backend": jax.default_backend()}, "sequence": name, "method": method,
            "solver": solver, "theta": args.theta, "size": args.size, "runs": rows,
            "median_of_means_deg": float(np.median(means)), "mean_of_means_deg": float(np.mean(means))}
-    path = RESULTS / "tracking_sweep.json"
+    path = RESULTS / f"tracking_sweep_{name}.json"
     write_json(out, path)
     print(f"wrote {path}")
     return 0
