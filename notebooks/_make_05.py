@@ -119,7 +119,7 @@ the hand, the solver would keep fitting whatever features it found near the pred
 not come back. Holding θ = 0.85 per frame at 10 frames/s instead (`TrackConfig(theta_rate_hz=None)`) keeps 2.5
 times as much history per second: the prediction then lags the sliding palm and the image run loses the hand
 (`benchmarks/tracking.py` measured 9.1° mean and a loss from frame 100 that way, against 1.5° and no loss). The
-same motion played faster, over the preset's default 100 frames, is also harder: the image run then loses 15
+same motion played faster, over 100 frames, is also harder: the image run then loses 15
 frames (7.9° mean). The exact-feature run shows what the same solver and filter do when the features are right.
 """)
 

@@ -359,11 +359,11 @@ PRESET_DESCRIPTIONS = {
 }
 
 _PRESETS: dict[str, tuple[Callable[[int, tuple[int, int]], Sequence], int]] = {
-    "two_finger_occlusion": (_two_finger_occlusion, 40),
-    "full_hand_spread_flex": (_full_hand_spread_flex, 60),
-    "index_thumb_grasp": (_index_thumb_grasp, 80),
-    "two_camera_hand": (_two_camera_hand, 60),
-    "mouse3d": (_mouse3d, 100),
+    "two_finger_occlusion": (_two_finger_occlusion, 80),
+    "full_hand_spread_flex": (_full_hand_spread_flex, 100),
+    "index_thumb_grasp": (_index_thumb_grasp, 120),
+    "two_camera_hand": (_two_camera_hand, 100),
+    "mouse3d": (_mouse3d, 150),
 }
 
 
@@ -377,8 +377,9 @@ def make_preset(name: str, *, frames: int | None = None, size=(320, 240)) -> Seq
 
     Args:
         name: one of :func:`preset_names`.
-        frames: number of frames (default: the preset's own, 40 to 100); the motion is the same
-            for any count, sampled more or less finely.
+        frames: number of frames (default: the preset's own, 80 to 150, the lengths
+            ``benchmarks/tracking.py`` measures); the motion is the same for any count, sampled
+            more or less finely (fewer frames: faster motion).
         size: image size (width, height) or ``"WxH"``; the cameras frame the whole motion.
 
     Raises:
