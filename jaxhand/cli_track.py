@@ -33,8 +33,14 @@ class image_extractor:  # noqa: N801 (used like a function: image_extractor(mode
         self.config = ImageConfig() if config is None else config
 
     def __call__(self, images, q_pred, state):
-        from .image import WindowOutlines, extract_features
+        from .image import WindowOutlines, extract_features, update_widths
 
+        if self.config.width_gain > 0 and (state is None or state.radius_mm is None):
+            # The first frame, at the hand-set pose: the radii measured there replace the model's
+            # at once (gain 1), one scale for the phalanges that cannot be measured there; later
+            # frames refine them with config.width_gain (refresh).
+            state = update_widths(images, self.model, self.cameras, np.asarray(q_pred), self.config, state,
+                                  gain=1.0, fill_unmeasured=True)
         features, diag = extract_features(images, self.model, self.cameras, np.asarray(q_pred), self.config, state)
         # The window outlines per camera, as coordinate arrays converted only when read (overlays).
         info = {"windows": WindowOutlines(diag), "method": diag.method}
@@ -43,14 +49,19 @@ class image_extractor:  # noqa: N801 (used like a function: image_extractor(mode
         return features, diag.state, info
 
     def refresh(self, images, q, state):
-        """Templates re-taken at the solved pose ``q``; a search that keeps no templates (all but
-        "wssd") gets ``state`` back untouched, at no cost."""
-        from .image import capture_templates
+        """The front end's state updated at the solved pose ``q``: the phalanx radii estimated
+        again when ``config.width_gain`` > 0 (:func:`jaxhand.image.update_widths`), then the
+        templates re-taken; a search that keeps no templates (all but "wssd") with no width
+        estimate gets ``state`` back untouched, at no cost."""
+        from .image import capture_templates, update_widths
         from .image.searches import TEMPLATE_SEARCHES
 
+        q = np.asarray(q)
+        if self.config.width_gain > 0:
+            state = update_widths(images, self.model, self.cameras, q, self.config, state)
         if self.config.method not in TEMPLATE_SEARCHES:
             return state
-        return capture_templates(images, self.model, self.cameras, np.asarray(q), self.config, state)
+        return capture_templates(images, self.model, self.cameras, q, self.config, state)
 
 
 def register(sub) -> None:
@@ -71,6 +82,9 @@ def register(sub) -> None:
     p.add_argument("--theta-rate", type=float, default=25.0,
                    help="frame rate (Hz) at which --theta holds; 0: --theta is per frame at any rate")
     p.add_argument("--no-filter", action="store_true", help="report the raw solve, predict with it")
+    p.add_argument("--width-gain", type=float, default=0.0,
+                   help="estimate the phalanx widths from the images with this gain per frame (thesis app. E; "
+                        "0.05-0.2 when the model's radii may be off; 0: keep the model's)")
     p.add_argument("--fps", type=float, default=25.0, help="frame rate of image folders")
     p.add_argument("--truth", help="ground truth: a synth ground_truth.json (default: the synth folder's)")
     p.add_argument("--max-frames", type=int, help="stop after N frames")
@@ -132,7 +146,7 @@ def _track(args) -> int:
         q0 = parse_pose(model, args.init)
     config = TrackConfig(solver=args.solver, max_steps=args.steps, theta=args.theta,
                          theta_rate_hz=args.theta_rate or None, filter=not args.no_filter)
-    extract = image_extractor(model, cameras, ImageConfig(method=args.method))
+    extract = image_extractor(model, cameras, ImageConfig(method=args.method, width_gain=args.width_gain))
     summary = track_sequence(model, cameras, sources, q0, args.out, extract, config=config, truth=truth,
                              video=not args.no_video, max_frames=args.max_frames)
     print_summary(summary, Path(args.out))

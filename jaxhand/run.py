@@ -165,4 +165,8 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
             summary["accuracy_filtered"] = accuracy_summary(model, cameras, q_f, q_t)
             summary["accuracy_solved"] = accuracy_summary(model, cameras, q_s, q_t)
         plot_joint_angles(model, times, q_f, out / "angles.png", q_truth=q_t, q_raw=q_s)
+    radius = getattr(state.image_state, "radius_mm", None)
+    if radius is not None:   # the front end's phalanx width estimate (ImageConfig.width_gain)
+        summary["link_radius_mm_estimated"] = dict(zip(model.link_names, np.asarray(radius, float).tolist()))
+        summary["link_radius_mm_model"] = dict(zip(model.link_names, np.asarray(model.link_radius_mm).tolist()))
     return writer.close(summary)

@@ -41,13 +41,18 @@ def test_sketch_writes_pngs(tmp_path, capsys):
 def test_track_a_synth_folder_end_to_end(tmp_path, capsys):
     assert main(["synth", "two_finger_occlusion", str(tmp_path / "seq"), "--frames", "6", "--size", "160x120"]) == 0
     assert main(["track", str(tmp_path / "seq"), "--out", str(tmp_path / "out"), "--method", "gaussian",
-                 "--theta-rate", "10"]) == 0
+                 "--theta-rate", "10", "--width-gain", "0.1"]) == 0
     out = capsys.readouterr().out
     assert "tracked 6 frames of two_fingers" in out
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["frames"] == 6 and "accuracy_filtered" in summary
     # 0.85 per frame at 10 frames/s, the synth folder's 25 frames/s: 0.85 ** 0.4
     assert summary["theta_per_frame"] == pytest.approx(0.937060, abs=1e-6)
+    # the phalanx widths estimated from the frames: the rendered ones are the model's (phalanges
+    # 4-5 px in radius at 160x120, where a third of a pixel is 8%)
+    est, model_r = summary["link_radius_mm_estimated"], summary["link_radius_mm_model"]
+    assert list(est) == ["middle_mcp", "middle_pip", "middle_dip", "index_mcp", "index_pip", "index_dip"]
+    np.testing.assert_allclose([est[k] for k in est], [model_r[k] for k in est], rtol=0.12)
     rows = (tmp_path / "out" / "angles.csv").read_text().splitlines()
     assert rows[0].startswith("frame,time_s,middle_mcp_deg") and len(rows) == 7
     assert np.isfinite(np.array([r.split(",")[2:-2] for r in rows[1:]], float)).all()

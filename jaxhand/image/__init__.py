@@ -8,7 +8,8 @@ vectorised predicates.
 - :func:`extract_features` is the entry point; :class:`ImageConfig` selects the search by name
   (:data:`SEARCH_NAMES`) and holds every setting.
 - :func:`capture_templates` stores unoccluded profile templates in an :class:`ImageState`, which
-  the tracker carries between frames for the WSSD search.
+  the tracker carries between frames for the WSSD search; :func:`update_widths` keeps the
+  phalanx radii estimated from the images there (appendix E, ``ImageConfig.width_gain``).
 - The pieces (tracker placement, profile sampling, visibility, searches, regressions, line
   fitting) are public for tests, benchmarks and figures.
 """
@@ -30,6 +31,8 @@ from ._extract import (
     as_images,
     capture_templates,
     extract_features,
+    measure_widths,
+    update_widths,
 )
 from ._lines import axial_line, line_params, line_point_direction, offset_towards, ransac_pca
 from ._regression import imwplls, mwplls, plls
@@ -40,7 +43,8 @@ from ._visibility import Visibility, compute_visibility, pill_outlines, same_cha
 from .searches import SEARCH_NAMES, SEARCHES, Edges, Profiles, search_named
 
 __all__ = [
-    "extract_features", "capture_templates", "ImageState", "Diagnostics", "CameraDiagnostics", "WindowOutlines",
+    "extract_features", "capture_templates", "measure_widths", "update_widths", "ImageState", "Diagnostics",
+    "CameraDiagnostics", "WindowOutlines",
     "ImageConfig", "SamplerConfig", "SearchConfig", "VisibilityConfig", "LineConfig", "TipConfig",
     "INTERPOLATIONS", "POLARITIES", "SEARCH_NAMES", "SEARCHES", "search_named", "Profiles", "Edges",
     "as_grey", "as_images", "sample_profiles",

@@ -269,6 +269,12 @@ class ImageConfig:
             template taken at a slightly wrong pose does not carry that error into the next
             frames' matches (template drift, which refreshing at each solved pose otherwise
             accumulates). A link whose boundaries cannot be found keeps its template uncentred.
+        width_gain: gain g of the phalanx width estimate (thesis appendix E): after each good
+            frame :func:`jaxhand.image.update_widths` moves every link's radius by g times the
+            mean innovation of its width measures at the solved pose, and the front end then
+            places samplers, windows and templates with the estimated radii. 0 (the default)
+            keeps the model's radii; 0.1-0.3 adapts a model to a hand whose phalanges are
+            thicker or thinner than the model's.
     """
 
     method: str = "wssd"
@@ -279,6 +285,7 @@ class ImageConfig:
     tips: TipConfig = TipConfig()
     template_min_visible: float = 0.25
     template_recentre: bool = True
+    width_gain: float = 0.0
 
     def __post_init__(self):
         from .searches import SEARCH_NAMES
@@ -287,6 +294,7 @@ class ImageConfig:
                f"unknown search {self.method!r}; valid: {', '.join(SEARCH_NAMES)}")
         _check(0 < self.template_min_visible <= 1, "ImageConfig.template_min_visible",
                f"must lie in (0, 1], got {self.template_min_visible!r}")
+        _check(0 <= self.width_gain <= 1, "ImageConfig.width_gain", f"must lie in [0, 1], got {self.width_gain!r}")
 
     def replace(self, **changes) -> ImageConfig:
         """A copy with some fields changed (``config.replace(method="gaussian")``)."""

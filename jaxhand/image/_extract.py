@@ -1,4 +1,5 @@
-"""The image front end's entry points: :func:`extract_features` and :func:`capture_templates`.
+"""The image front end's entry points: :func:`extract_features`, :func:`capture_templates` and
+:func:`update_widths`.
 
 Per camera (thesis ch. 4, DESIGN.md data flow):
 
@@ -38,7 +39,8 @@ from ._visibility import Visibility, compute_visibility, convex_edges, inside_po
 from .searches import TEMPLATE_SEARCHES, Edges, Profiles, search_named
 from .searches._common import gaussian_derivative, masked_argmax, simple_derivative
 
-__all__ = ["extract_features", "capture_templates", "Diagnostics", "CameraDiagnostics", "as_images", "WindowOutlines"]
+__all__ = ["extract_features", "capture_templates", "measure_widths", "update_widths", "Diagnostics",
+           "CameraDiagnostics", "as_images", "WindowOutlines"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -362,6 +364,16 @@ def _prepare(images, model: Model, cameras, q, config: ImageConfig | None, name:
     return config, rig, greys, q, chain
 
 
+def _matching_state(state: ImageState | None, n_cameras: int, model: Model, config: ImageConfig) -> ImageState:
+    """``state`` when its templates fit this rig, model and layout, else an empty one (keeping
+    estimated radii of the right shape)."""
+    layout = _layout(config)
+    if state is not None and state.matches(n_cameras, model.n_links, layout):
+        return state
+    radius = None if state is None or np.shape(state.radius_mm) != (model.n_links,) else state.radius_mm
+    return dataclasses.replace(ImageState.empty(n_cameras, model.n_links, layout), radius_mm=radius)
+
+
 def capture_templates(images, model: Model, cameras, q, config: ImageConfig | None = None,
                       state: ImageState | None = None) -> ImageState:
     """Store (or refresh) the profile templates of every link seen at pose ``q``.
@@ -389,16 +401,125 @@ def capture_templates(images, model: Model, cameras, q, config: ImageConfig | No
         InputError: bad images, q or config.
     """
     config, rig, greys, q, chain = _prepare(images, model, cameras, q, config, "q")
-    layout = _layout(config)
-    if state is None or not state.matches(len(rig), model.n_links, layout):
-        state = ImageState.empty(len(rig), model.n_links, layout)
+    state = _matching_state(state, len(rig), model, config)
+    model = state.model_radii(model)
     templates, masks = [], []
     for c, (grey, cam) in enumerate(zip(greys, rig)):
         obs = _observe(grey, model, cam, q, chain, config)
         t, m = _take_templates(obs, config, state.templates[c], state.template_mask[c], only_missing=False)
         templates.append(t)
         masks.append(m)
-    return ImageState(templates=tuple(templates), template_mask=tuple(masks), layout=layout)
+    return dataclasses.replace(state, templates=tuple(templates), template_mask=tuple(masks))
+
+
+#: Width measures outside these multiples of the radius in use are implausible (the profile spans
+#: ``±scope`` radii, 1.75 by default, so a boundary beyond it cannot be seen anyway).
+_WIDTH_RATIO_RANGE = (0.5, 1.6)
+#: A link's width measures count when at least this many agree with their median to this share.
+_WIDTH_MIN_COUNT, _WIDTH_AGREEMENT = 4, 0.1
+
+
+def _width_ratios(obs: _Observation, config: ImageConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(links, samplers) each profile's width between its two Gaussian-derivative boundaries in
+    units of the radius in use, and whether it counts: both boundaries found, both against the
+    background (no other link's outline next to them), the link's window over the profile's
+    middle, and the ratio within :data:`_WIDTH_RATIO_RANGE`."""
+    sc = config.samplers
+    n = obs.values.shape[-1]
+    profiles = Profiles(values=obs.values, usable=obs.usable, window=obs.window, centre=sc.centre,
+                        radius=sc.samples_per_radius, spacing_px=obs.samplers.spacing_px)
+    edges = search_named("gaussian")(profiles, config.search)
+    ratio = (edges.pos[..., 1] - edges.pos[..., 0]) / (2 * sc.samples_per_radius)
+    core = np.abs(np.arange(n) - sc.centre) <= 0.5 * sc.samples_per_radius
+    ok = (edges.valid.all(-1) & np.all(obs.window[..., core], axis=-1) & obs.samplers.ok[:, None]
+          & _against_background(obs).all(-1) & (ratio >= _WIDTH_RATIO_RANGE[0]) & (ratio <= _WIDTH_RATIO_RANGE[1]))
+    return np.where(ok, ratio, np.nan), ok
+
+
+def _row_median(values: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """Median of each row's ``ok`` entries (0 for a row without one)."""
+    v = np.sort(np.where(ok, values, np.inf), axis=-1)
+    n = ok.sum(-1)
+    lo = np.take_along_axis(v, np.maximum(n - 1, 0)[:, None] // 2, -1)[:, 0]
+    hi = np.take_along_axis(v, np.minimum(n // 2, v.shape[-1] - 1)[:, None], -1)[:, 0]
+    return np.where(n > 0, 0.5 * (lo + hi), 0.0)
+
+
+def measure_widths(images, model: Model, cameras, q, config: ImageConfig | None = None,
+                   state: ImageState | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Redundant measures of every phalanx's radius (thesis appendix E), one per profile and camera.
+
+    The links are sampled at pose ``q`` (the solved pose: the profiles must cross the phalanges)
+    with the radii in use (``state``'s estimate, else the model's); a profile measures the radius
+    as the distance between its two Gaussian-derivative boundaries (§11.1.2), in units of the
+    radius in use, times that radius in mm. A profile counts only where both of its boundaries lie
+    against the background and its link is visible across its middle, so the edge of a
+    neighbouring or nearer finger cannot pose as a boundary.
+
+    Returns:
+        (radius_mm, valid): (links, cameras x samplers) measures in mm (NaN where not valid) and
+        their validity.
+
+    Raises:
+        InputError: bad images, q or config.
+    """
+    config, rig, greys, q, chain = _prepare(images, model, cameras, q, config, "q")
+    model = _matching_state(state, len(rig), model, config).model_radii(model)
+    radius = np.asarray(model.link_radius_mm, float)
+    ratios, oks = [], []
+    for grey, cam in zip(greys, rig):
+        ratio, ok = _width_ratios(_observe(grey, model, cam, q, chain, config), config)
+        ratios.append(ratio)
+        oks.append(ok)
+    ratio, ok = np.concatenate(ratios, -1), np.concatenate(oks, -1)
+    # Consistent measures only: a link needs _WIDTH_MIN_COUNT of them, each within
+    # _WIDTH_AGREEMENT of their median (an edge taken from a touching neighbour stands out).
+    med = _row_median(ratio, ok)[:, None]
+    ok &= np.abs(np.nan_to_num(ratio) - med) <= _WIDTH_AGREEMENT * med
+    ok &= ok.sum(-1, keepdims=True) >= _WIDTH_MIN_COUNT
+    return np.where(ok, ratio * radius[:, None], np.nan), ok
+
+
+#: The estimated radii stay within these multiples of the model's (a run of wrong poses cannot
+#: shrink or grow a phalanx without bound).
+_RADIUS_RANGE = (0.5, 2.0)
+
+
+def update_widths(images, model: Model, cameras, q, config: ImageConfig | None = None,
+                  state: ImageState | None = None, *, gain: float | None = None,
+                  fill_unmeasured: bool = False) -> ImageState:
+    """``state`` with every phalanx radius updated from this frame's width measures at pose ``q``
+    (thesis appendix E: the radius is a constant, so the prediction is the last estimate and the
+    update moves it by ``config.width_gain`` times the mean innovation of the link's valid
+    measures; a link without one keeps its estimate). The first update starts from the model's
+    radii; every estimate stays within :data:`_RADIUS_RANGE` times the model's radius.
+
+    Args:
+        gain: the update's gain (default ``config.width_gain``); 1 takes the measures' mean.
+        fill_unmeasured: a link without a valid measure takes the model's radius times the median
+            ratio of estimate to model radius of the links that have one (one scale for the whole
+            hand), for a first estimate at the hand-set pose, where phalanges that touch a
+            neighbour cannot be measured.
+
+    Raises:
+        InputError: bad images, q or config.
+    """
+    from ..filter import width_update
+
+    config = ImageConfig() if config is None else config
+    rig = as_rig(cameras)
+    state = _matching_state(state, len(rig), model, config)
+    measures, valid = measure_widths(images, model, rig, q, config, state)
+    nominal = np.asarray(model.link_radius_mm, float)
+    current = np.asarray(state.model_radii(model).link_radius_mm, float)
+    radius = np.asarray(width_update(jnp.asarray(current), jnp.asarray(np.nan_to_num(measures)), jnp.asarray(valid),
+                                     config.width_gain if gain is None else gain))
+    measured = valid.any(-1) & (nominal > 0)
+    if fill_unmeasured and measured.any():
+        scale = np.median(radius[measured] / nominal[measured])
+        radius = np.where(measured, radius, nominal * scale)
+    radius = np.clip(radius, _RADIUS_RANGE[0] * nominal, _RADIUS_RANGE[1] * nominal)
+    return dataclasses.replace(state, radius_mm=radius)
 
 
 def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig | None = None,
@@ -429,9 +550,8 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
     """
     config, rig, greys, q, chain = _prepare(images, model, cameras, q_pred, config, "q_pred")
     search = search_named(config.method)
-    layout = _layout(config)
-    if state is None or not state.matches(len(rig), model.n_links, layout):
-        state = ImageState.empty(len(rig), model.n_links, layout)
+    state = _matching_state(state, len(rig), model, config)
+    model = state.model_radii(model)
     features, diags, templates, masks = [], [], [], []
     sc = config.samplers
     snapping = config.method in TEMPLATE_SEARCHES and config.search.snap > 0
@@ -464,7 +584,7 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
                                        edges=edges, edge_px=edge_px, boundary_lines=boundary, boundary_valid=bvalid,
                                        inliers=inliers, axial_lines=lines, single_edge=single, tip_samplers=ts,
                                        tip_edge_px=tip_edge, tip_strength=tip_strength))
-    new_state = ImageState(templates=tuple(templates), template_mask=tuple(masks), layout=layout)
+    new_state = dataclasses.replace(state, templates=tuple(templates), template_mask=tuple(masks))
     return tuple(features), Diagnostics(method=config.method, cameras=tuple(diags), state=new_state,
                                         timings_s=dict(clock.totals))
 

@@ -1,9 +1,12 @@
-"""The state the image front end carries between frames: the stored templates (thesis §4.3.1)."""
+"""The state the image front end carries between frames: the stored templates (thesis §4.3.1)
+and the estimated phalanx radii (appendix E)."""
 
 from __future__ import annotations
 
 import dataclasses
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
 __all__ = ["ImageState"]
@@ -26,11 +29,15 @@ class ImageState:
         templates: per camera, (links, samplers, points) grey levels (0 where none is stored).
         template_mask: per camera, (links, samplers, points) the template sample showed the link.
         layout: (samplers per link, points per profile, scope) the templates were sampled with.
+        radius_mm: (links,) the phalanx radii estimated from the images
+            (:func:`jaxhand.image.update_widths`), which the front end uses in place of the
+            model's; None: the model's radii.
     """
 
     templates: tuple[np.ndarray, ...]
     template_mask: tuple[np.ndarray, ...]
     layout: tuple[int, int, float]
+    radius_mm: np.ndarray | None = None
 
     @property
     def template_valid(self) -> tuple[np.ndarray, ...]:
@@ -44,6 +51,14 @@ class ImageState:
                    template_mask=tuple(np.zeros((n_links, m, n), bool) for _ in range(n_cameras)), layout=layout)
 
     def matches(self, n_cameras: int, n_links: int, layout: tuple[int, int, float]) -> bool:
-        """Whether the state fits this rig, model and sampler layout."""
+        """Whether the state's templates fit this rig, model and sampler layout."""
         return (self.layout == layout and len(self.templates) == n_cameras
                 and all(t.shape == (n_links, layout[0], layout[1]) for t in self.templates))
+
+    def model_radii(self, model):
+        """``model`` with this state's estimated radii (``model`` itself when there are none)."""
+        if self.radius_mm is None:
+            return model
+        if np.shape(self.radius_mm) != (model.n_links,):
+            raise ValueError(f"ImageState.radius_mm: expected shape ({model.n_links},), got {np.shape(self.radius_mm)}")
+        return eqx.tree_at(lambda m: m.link_radius_mm, model, jnp.asarray(self.radius_mm, float))
