@@ -13,6 +13,7 @@ sequence.
     .venv/bin/python benchmarks/tracking.py --quick    # fewer frames, no JSON
     .venv/bin/python benchmarks/tracking.py --sweep    # two-finger motion at 6 speeds
     .venv/bin/python benchmarks/tracking.py --sweep --only two_camera_hand
+    .venv/bin/python benchmarks/tracking.py --only full_hand_spread_flex --radius-scale 0.8 --width-gain 0.05
 
 ``--sweep`` measures how much one number depends on the speed of the motion: the same two-finger
 path (or ``--only``'s) played over 60 to 120 frames at the preset's frame rate (two fingers: 2.4 to
@@ -28,6 +29,7 @@ import sys
 import time
 from pathlib import Path
 
+import equinox as eqx
 import jax
 import numpy as np
 
@@ -133,6 +135,10 @@ def main(argv=None) -> int:
     parser.add_argument("--size", default="320x240", help="image size WxH")
     parser.add_argument("--frames", type=int, help="frames per sequence (default: each experiment's own)")
     parser.add_argument("--sweep", action="store_true", help="the two-finger motion (or --only) at 6 speeds")
+    parser.add_argument("--radius-scale", type=float, default=1.0,
+                        help="render the phalanges this many times as thick as the tracker's model says")
+    parser.add_argument("--width-gain", type=float, default=0.0,
+                        help="estimate the phalanx widths from the images with this gain (ImageConfig.width_gain)")
     args = parser.parse_args(argv)
     if args.sweep:
         RESULTS.mkdir(parents=True, exist_ok=True)
@@ -145,21 +151,24 @@ def main(argv=None) -> int:
         seq = make_preset(name, frames=12 if args.quick else (args.frames or frames), size=args.size)
         method, solver = args.method or method, args.solver or solver
         t0 = time.perf_counter()
-        images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras] for q in seq.q]
+        shown = eqx.tree_at(lambda m: m.link_radius_mm, seq.model, seq.model.link_radius_mm * args.radius_scale)
+        images = [[render_frame(shown, c, q, RenderConfig(antialias=3)).image for c in seq.cameras] for q in seq.q]
         render_s = time.perf_counter() - t0
         extra = {"reextract": reextract if args.reextract is None else args.reextract}
         if args.robust is not None:
             extra["robust_passes"] = args.robust
         config = TrackConfig(solver=solver, max_steps=steps, theta=args.theta, **extra)
         entry = {"method": method, "solver": solver, "steps": steps, "theta": args.theta, "size": args.size,
-                 "robust_passes": config.robust_passes, "reextract": config.reextract, "render_s": render_s}
+                 "robust_passes": config.robust_passes, "reextract": config.reextract, "render_s": render_s,
+                 "radius_scale": args.radius_scale, "width_gain": args.width_gain}
         for label, extract in (
-                (method, image_extractor(seq.model, seq.cameras, ImageConfig(method=method))),
+                (method, image_extractor(seq.model, seq.cameras, ImageConfig(method=method,
+                                                                             width_gain=args.width_gain))),
                 ("exact+0.5px", exact_extractor(seq.model, seq.cameras, seq.q, noise_px=0.5))):
             r = run(seq, images, extract, config)
             entry[label] = {k: v for k, v in r.items() if not k.startswith("q_")}
             rows.append((name, label, solver, r))
-            if label == method and not args.quick:
+            if label == method and not args.quick and args.radius_scale == 1.0 and not args.width_gain:
                 plot_joint_angles(seq.model, seq.times_s, r["q_filtered"], RESULTS / f"tracking_{name}.png",
                                   q_truth=seq.q, q_raw=r["q_solved"],
                                   title=f"{name} ({method}, {solver}): filtered (solid) vs truth (dotted)")
@@ -176,7 +185,10 @@ def main(argv=None) -> int:
               f"{r['frames_before_loss']:5d}/{r['frames']:<5d} "
               f"{r['fps_end_to_end']:7.1f}  {stages}")
     if not args.quick:
-        path = RESULTS / ("tracking.json" if not args.only else f"tracking_{args.only}.json")
+        stem = "tracking" + (f"_{args.only}" if args.only else "")
+        if args.radius_scale != 1.0 or args.width_gain:
+            stem += f"_r{args.radius_scale:g}_g{args.width_gain:g}"
+        path = RESULTS / f"{stem}.json"
         write_json(out, path)
         print(f"wrote {path}")
     return 0
