@@ -82,6 +82,9 @@ def register(sub) -> None:
     p.add_argument("--theta-rate", type=float, default=25.0,
                    help="frame rate (Hz) at which --theta holds; 0: --theta is per frame at any rate")
     p.add_argument("--no-filter", action="store_true", help="report the raw solve, predict with it")
+    p.add_argument("--reacquire", default="", metavar="DEG,...",
+                   help="search again for a lost phalanx with its joint turned by these angles, e.g. 15,30,45 "
+                        "(ImageConfig.reacquire_deg; default: never)")
     p.add_argument("--width-gain", type=float, default=0.0,
                    help="estimate the phalanx widths from the images with this gain per frame (thesis app. E; "
                         "0.05-0.2 when the model's radii may be off; 0: keep the model's)")
@@ -146,7 +149,13 @@ def _track(args) -> int:
         q0 = parse_pose(model, args.init)
     config = TrackConfig(solver=args.solver, max_steps=args.steps, theta=args.theta,
                          theta_rate_hz=args.theta_rate or None, filter=not args.no_filter)
-    extract = image_extractor(model, cameras, ImageConfig(method=args.method, width_gain=args.width_gain))
+    try:
+        reacquire = tuple(float(a) for a in args.reacquire.split(",") if a.strip())
+    except ValueError:
+        raise InputError(f"--reacquire: expected angles in degrees separated by commas, got {args.reacquire!r}"
+                         ) from None
+    extract = image_extractor(model, cameras, ImageConfig(method=args.method, width_gain=args.width_gain,
+                                                          reacquire_deg=reacquire))
     summary = track_sequence(model, cameras, sources, q0, args.out, extract, config=config, truth=truth,
                              video=not args.no_video, max_frames=args.max_frames)
     print_summary(summary, Path(args.out))

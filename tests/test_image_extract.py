@@ -17,7 +17,7 @@ import shapely
 from helpers import fit_camera
 
 import jaxhand as jh
-from jaxhand.features import line_through, validate_features
+from jaxhand.features import features_from_pose, line_through, validate_features
 from jaxhand.image import (
     SEARCH_NAMES,
     ImageConfig,
@@ -457,3 +457,30 @@ def test_tip_over_another_finger_is_invalid():
     valid = np.asarray(f[0].tip_valid)
     assert not valid[1]
     assert valid[0] and np.linalg.norm(np.asarray(f[0].tips)[0] - tips[0]) < 1.0
+
+
+@pytest.mark.parametrize("frame, joint, turn_deg", [(60, "index_dip", -60.0), (96, "thumb_ip", 57.0),
+                                                    (20, "index_pip", -45.0)])
+def test_reacquire_finds_a_phalanx_the_prediction_turned_away(frame, joint, turn_deg):
+    # index + thumb from the side: one joint of the prediction turned so far that the link's
+    # profiles miss its phalanx; turning that joint back by up to 45 degrees finds it again
+    seq = make_preset("index_thumb_grasp")
+    m, cams, q = seq.model, seq.cameras, seq.q[frame]
+    image = render_frame(m, cams[0], q, RenderConfig(antialias=3)).image
+    j, link = m.q_lookup(joint), m.link_lookup(joint)
+    q_pred = q.copy()
+    q_pred[j] += np.radians(turn_deg)
+    assert m.q_lower[j] <= q_pred[j] <= m.q_upper[j]
+    truth = features_from_pose(m, cams, q)[0]
+    plain, d0 = extract_features(image, m, cams, q_pred, ImageConfig(method="imwplls"))
+    assert not bool(plain[0].line_valid[link]) and not d0.cameras[0].reacquired.any()
+    found, d1 = extract_features(image, m, cams, q_pred, ImageConfig(method="imwplls", reacquire_deg=(15, 30, 45)))
+    assert bool(found[0].line_valid[link]) and d1.cameras[0].reacquired[link]
+    assert d1.cameras[0].reacquired.sum() == 1
+    line, true_line = np.asarray(found[0].lines[link]), np.asarray(truth.lines[link])
+    assert np.degrees(np.arccos(min(1.0, abs(line[:2] @ true_line[:2])))) < 0.7
+    # the other links' features are those of the plain search
+    others = np.arange(m.n_links) != link
+    np.testing.assert_array_equal(np.asarray(found[0].lines)[others], np.asarray(plain[0].lines)[others])
+    with pytest.raises(jh.InputError, match="reacquire_deg"):
+        ImageConfig(reacquire_deg=(0.0,))

@@ -275,6 +275,11 @@ class ImageConfig:
             places samplers, windows and templates with the estimated radii. 0 (the default)
             keeps the model's radii; 0.1-0.3 adapts a model to a hand whose phalanges are
             thicker or thinner than the model's.
+        reacquire_deg: where the prediction shows a link but the search finds no line for it
+            (while its parent link's line is found), search again with the link's joint turned
+            by each of these angles (degrees) both ways and take the line found with the most
+            boundary inliers (not in the documents: a phalanx that turns faster than the
+            filter predicts is found again). Empty: never.
     """
 
     method: str = "wssd"
@@ -286,6 +291,7 @@ class ImageConfig:
     template_min_visible: float = 0.25
     template_recentre: bool = True
     width_gain: float = 0.0
+    reacquire_deg: tuple[float, ...] = ()
 
     def __post_init__(self):
         from .searches import SEARCH_NAMES
@@ -295,6 +301,8 @@ class ImageConfig:
         _check(0 < self.template_min_visible <= 1, "ImageConfig.template_min_visible",
                f"must lie in (0, 1], got {self.template_min_visible!r}")
         _check(0 <= self.width_gain <= 1, "ImageConfig.width_gain", f"must lie in [0, 1], got {self.width_gain!r}")
+        _check(all(0 < a <= 90 for a in self.reacquire_deg), "ImageConfig.reacquire_deg",
+               f"angles must lie in (0, 90] degrees, got {self.reacquire_deg!r}")
 
     def replace(self, **changes) -> ImageConfig:
         """A copy with some fields changed (``config.replace(method="gaussian")``)."""

@@ -61,6 +61,9 @@ class CameraDiagnostics:
         tip_samplers: tip sampler placement (refined tips, directions, sample positions).
         tip_edge_px: (tips, 2) tip boundary points found (NaN where none).
         tip_strength: (tips,) derivative at the tip boundary, grey levels per pixel.
+        reacquired: (links,) the link's line (and tip) came from a search with its joint turned
+            (``ImageConfig.reacquire_deg``); the other diagnostics show the search at the
+            prediction.
     """
 
     samplers: LinkSamplers
@@ -76,6 +79,7 @@ class CameraDiagnostics:
     tip_samplers: TipSamplers
     tip_edge_px: np.ndarray
     tip_strength: np.ndarray
+    reacquired: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -522,6 +526,118 @@ def update_widths(images, model: Model, cameras, q, config: ImageConfig | None =
     return dataclasses.replace(state, radius_mm=radius)
 
 
+@dataclasses.dataclass(frozen=True)
+class _View:
+    """One camera's search, line fits and tips around one pose (:func:`_search_view`)."""
+
+    profiles: Profiles
+    edges: Edges
+    edge_px: np.ndarray
+    lines: np.ndarray
+    valid: np.ndarray
+    weight: np.ndarray
+    boundary: np.ndarray
+    bvalid: np.ndarray
+    inliers: np.ndarray
+    single: np.ndarray
+    tips: np.ndarray
+    tip_valid: np.ndarray
+    ts: TipSamplers
+    tip_edge: np.ndarray
+    tip_strength: np.ndarray
+
+
+def _search_view(grey: np.ndarray, model: Model, obs: _Observation, config: ImageConfig, search, tmpl: np.ndarray,
+                 tmask: np.ndarray, clock: _Clock) -> _View:
+    """Steps 4-6 of the module docstring for one camera's observation ``obs``."""
+    sc = config.samplers
+    snapping = config.method in TEMPLATE_SEARCHES and config.search.snap > 0
+    profiles = Profiles(values=obs.values, usable=obs.usable, window=obs.window, centre=sc.centre,
+                        radius=sc.samples_per_radius, spacing_px=obs.samplers.spacing_px, templates=tmpl,
+                        template_valid=tmask.any(axis=(1, 2)) & obs.samplers.ok,
+                        template_mask=tmask,
+                        boundary_clear=_against_background(obs) if snapping else None)
+    clock.lap("search")  # template bookkeeping counts with the search
+    edges = search(profiles, config.search)
+    clock.lap("search")
+    edge_px, edge_ok = _edges_to_px(obs.samplers, edges, sc.centre)
+    lines, valid, weight, boundary, bvalid, inliers, single, p_ax, v_ax = _fit_links(obs, edge_px, edge_ok, config)
+    clock.lap("lines")
+    tips, tip_valid, ts, tip_edge, tip_strength = _tips(grey, model, obs, valid, p_ax, v_ax, config)
+    clock.lap("tips")
+    return _View(profiles=profiles, edges=edges, edge_px=edge_px, lines=lines, valid=valid, weight=weight,
+                 boundary=boundary, bvalid=bvalid, inliers=inliers, single=single, tips=tips, tip_valid=tip_valid,
+                 ts=ts, tip_edge=tip_edge, tip_strength=tip_strength)
+
+
+def _parent_links(model: Model) -> np.ndarray:
+    """(links,) the link on the nearest frame above each link's frame (-1: none)."""
+    by_frame = {f: k for k, f in enumerate(model.link_frame)}
+    out = np.full(model.n_links, -1)
+    for k, f in enumerate(model.link_frame):
+        j = model.parents[f]
+        while j >= 0 and j not in by_frame:
+            j = model.parents[j]
+        out[k] = by_frame.get(j, -1)
+    return out
+
+
+#: Only a link predicted (almost) wholly in view is searched for again when its line is missing.
+_REACQUIRE_MIN_VISIBLE = 0.9
+
+
+def _reacquire(grey: np.ndarray, model: Model, cam, q: np.ndarray, chain: np.ndarray, config: ImageConfig, search,
+               tmpl: np.ndarray, tmask: np.ndarray, obs: _Observation, view: _View, clock: _Clock
+               ) -> tuple[_View, np.ndarray]:
+    """Search again for the links the prediction shows but the search did not find.
+
+    A link qualifies when it has samplers, is predicted in full view (visible share of at least
+    :data:`_REACQUIRE_MIN_VISIBLE`: a link partly behind another is missing for that reason), no
+    line was found for it and its parent link's line was (so its joint is where the model says):
+    its own joint is then turned by each of ``config.reacquire_deg`` both ways (within the joint
+    limits) and the view searched again; the turn whose search finds the link's line with the
+    most boundary inliers, at least one per sampler, gives that link's line (and tip): a turn
+    that only grazes the phalanx finds fewer inliers on a line several degrees off. Not in the
+    documents: a distal phalanx that moves faster than the filter predicts
+    otherwise leaves its profiles and is not found again while the prediction lags.
+    """
+    parent = _parent_links(model)
+    frame_q = np.array([model.q_index[f] for f in model.link_frame])
+    anchored = np.where(parent >= 0, view.valid[np.maximum(parent, 0)], True)
+    todo = np.flatnonzero(~view.valid & anchored & (obs.visibility.visible_share >= _REACQUIRE_MIN_VISIBLE)
+                          & obs.samplers.ok
+                          & (frame_q >= 0)
+                          & np.array([model.joint_kinds[f] == "revolute" for f in model.link_frame]))
+    reacquired = np.zeros(model.n_links, bool)
+    if not len(todo):
+        return view, reacquired
+    lo, hi = np.asarray(model.q_lower, float), np.asarray(model.q_upper, float)
+    out = {k: getattr(view, k).copy() for k in ("lines", "valid", "weight", "single", "tips", "tip_valid")}
+    tip_of = {link: t for t, link in enumerate(model.tip_links)}
+    for link in todo:
+        j = frame_q[link]
+        best, best_score = None, view.profiles.values.shape[1] - 1   # at least one inlier per sampler
+        for turn in np.radians([a * sign for a in config.reacquire_deg for sign in (1.0, -1.0)]):
+            qc = q.copy()
+            qc[j] = np.clip(q[j] + turn, lo[j], hi[j])
+            if qc[j] == q[j]:
+                continue
+            cand = _search_view(grey, model, _observe(grey, model, cam, qc, chain, config), config, search, tmpl,
+                                tmask, clock)
+            score = int(cand.inliers[link].sum())
+            if cand.valid[link] and score > best_score:
+                best, best_score = cand, score
+        if best is None:
+            continue
+        reacquired[link] = True
+        for k in ("lines", "valid", "weight", "single"):
+            out[k][link] = getattr(best, k)[link]
+        if link in tip_of:
+            out["tips"][tip_of[link]] = best.tips[tip_of[link]]
+            out["tip_valid"][tip_of[link]] = best.tip_valid[tip_of[link]]
+    return dataclasses.replace(view, **out), reacquired
+
+
 def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig | None = None,
                      state: ImageState | None = None) -> tuple[tuple[Features, ...], Diagnostics]:
     """Link lines and tip points of every camera's image, searched around the predicted pose.
@@ -553,8 +669,6 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
     state = _matching_state(state, len(rig), model, config)
     model = state.model_radii(model)
     features, diags, templates, masks = [], [], [], []
-    sc = config.samplers
-    snapping = config.method in TEMPLATE_SEARCHES and config.search.snap > 0
     clock = _Clock()
     for c, (grey, cam) in enumerate(zip(greys, rig)):
         obs = _observe(grey, model, cam, q, chain, config, clock)
@@ -563,27 +677,20 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
             tmpl, tmask = _take_templates(obs, config, tmpl, tmask, only_missing=True)
         templates.append(tmpl)
         masks.append(tmask)
-        profiles = Profiles(values=obs.values, usable=obs.usable, window=obs.window, centre=sc.centre,
-                            radius=sc.samples_per_radius, spacing_px=obs.samplers.spacing_px, templates=tmpl,
-                            template_valid=tmask.any(axis=(1, 2)) & obs.samplers.ok,
-                            template_mask=tmask,
-                            boundary_clear=_against_background(obs) if snapping else None)
-        clock.lap("search")  # template bookkeeping counts with the search
-        edges = search(profiles, config.search)
-        clock.lap("search")
-        edge_px, edge_ok = _edges_to_px(obs.samplers, edges, sc.centre)
-        lines, valid, weight, boundary, bvalid, inliers, single, p_ax, v_ax = _fit_links(obs, edge_px, edge_ok, config)
-        clock.lap("lines")
-        tips, tip_valid, ts, tip_edge, tip_strength = _tips(grey, model, obs, valid, p_ax, v_ax, config)
-        clock.lap("tips")
-        features.append(Features(lines=jnp.asarray(lines), line_valid=jnp.asarray(valid),
-                                 line_weight=jnp.asarray(weight), tips=jnp.asarray(tips),
+        view = _search_view(grey, model, obs, config, search, tmpl, tmask, clock)
+        reacquired = np.zeros(model.n_links, bool)
+        if config.reacquire_deg:
+            view, reacquired = _reacquire(grey, model, cam, q, chain, config, search, tmpl, tmask, obs, view, clock)
+        tip_valid = view.tip_valid
+        features.append(Features(lines=jnp.asarray(view.lines), line_valid=jnp.asarray(view.valid),
+                                 line_weight=jnp.asarray(view.weight), tips=jnp.asarray(view.tips),
                                  tip_valid=jnp.asarray(tip_valid),
                                  tip_weight=jnp.asarray(tip_valid.astype(float))))
-        diags.append(CameraDiagnostics(samplers=obs.samplers, visibility=obs.visibility, profiles=profiles,
-                                       edges=edges, edge_px=edge_px, boundary_lines=boundary, boundary_valid=bvalid,
-                                       inliers=inliers, axial_lines=lines, single_edge=single, tip_samplers=ts,
-                                       tip_edge_px=tip_edge, tip_strength=tip_strength))
+        diags.append(CameraDiagnostics(samplers=obs.samplers, visibility=obs.visibility, profiles=view.profiles,
+                                       edges=view.edges, edge_px=view.edge_px, boundary_lines=view.boundary,
+                                       boundary_valid=view.bvalid, inliers=view.inliers, axial_lines=view.lines,
+                                       single_edge=view.single, tip_samplers=view.ts, tip_edge_px=view.tip_edge,
+                                       tip_strength=view.tip_strength, reacquired=reacquired))
     new_state = dataclasses.replace(state, templates=tuple(templates), template_mask=tuple(masks))
     return tuple(features), Diagnostics(method=config.method, cameras=tuple(diags), state=new_state,
                                         timings_s=dict(clock.totals))
