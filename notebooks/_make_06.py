@@ -34,8 +34,8 @@ The image front end is the thesis's proposed windowed SSD template search (`Imag
 per frame, `TrackConfig.theta_rate_hz`), exactly as `benchmarks/tracking.py` runs this experiment. DigitEyes
 tracked real images with an edge search; WSSD is used here because it is the method this project reproduces from
 the thesis. The run is repeated with an *oracle* front end (`exact_extractor(model, cameras, seq.q, noise_px=0.5)`)
-that hands the solver the exact features of the true pose plus 0.5 px of seeded Gaussian noise: the bound set by
-the solver and the filter alone. The numbers are whatever this run produces; nothing is tuned or selected per
+that hands the solver the exact features of the true pose plus 0.5 px of seeded Gaussian noise: what the solver
+and the filter do with features that good (on these noise-free renderings the image front end can do better). The numbers are whatever this run produces; nothing is tuned or selected per
 frame.
 
 **What it uses.** The public API only: `jaxhand.render` (`make_preset`, `render_frame`, `RenderConfig`,
