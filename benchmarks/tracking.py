@@ -28,6 +28,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
@@ -44,19 +45,34 @@ from jaxhand.run import accuracy_summary  # noqa: E402
 from jaxhand.track import TrackConfig, Tracker, exact_extractor  # noqa: E402
 from jaxhand.viz import plot_joint_angles  # noqa: E402
 
-# (sequence, front-end method, solver, steps per frame, frames, re-extractions per frame): the
-# documents' choice of method for each experiment, except the two-camera hand, which runs the
+
+class Experiment(NamedTuple):
+    """One of the documents' experiments as this benchmark runs it."""
+
+    name: str          # the preset
+    method: str        # front-end search
+    solver: str
+    steps: int         # solver iterations per frame
+    frames: int        # each preset's motion sampled at 25 fps (10 fps for the DigitEyes ones)
+    reextract: int     # TrackConfig.reextract
+    reacquire: tuple[float, ...] = ()   # ImageConfig.reacquire_deg
+
+
+# The documents' choice of method for each experiment, except the two-camera hand, which runs the
 # thesis's proposed method (WSSD) rather than an edge search like DigitEyes' ("gaussian": see
-# --method). Frames: each preset's motion sampled at 25 fps (10 fps for the DigitEyes ones).
-# Re-extraction (TrackConfig.reextract) is what the occlusion sequences need; the open 21-DOF hand
-# does better without it (2.50 deg at 91 frames/s against 3.04 deg at 44 on the run quoted in the
-# README), index + thumb and the mouse much worse.
+# --method). Re-extraction is what the occlusion sequences need; the open 21-DOF hand does better
+# without it (2.50 deg at 91 frames/s against 3.04 deg at 44 on the run quoted in the README),
+# index + thumb and the mouse much worse. Re-acquisition (turning the joint of a phalanx the
+# search lost) is what index + thumb needs, whose distal phalanges turn faster than the filter
+# predicts (5.25 -> 3.07 deg); elsewhere it changed little (two fingers 1.88 -> 1.89, open hand
+# 2.50 -> 2.67, mouse 1.50 -> 1.50) or cost time for nothing (two-camera hand: 0.86 -> 1.02 deg
+# at a third of the frame rate).
 EXPERIMENTS = [
-    ("two_finger_occlusion", "wssd", "bounded", 20, 80, 1),      # thesis §6.1: the proposed method
-    ("full_hand_spread_flex", "imwplls", "bounded", 20, 100, 0),  # thesis §6.2.2: alternative method, bounded
-    ("index_thumb_grasp", "imwplls", "lm", 20, 120, 1),          # thesis §6.2.1 (real images there)
-    ("two_camera_hand", "wssd", "bounded", 20, 100, 1),          # DigitEyes §6.2: 27 DOF, two cameras
-    ("mouse3d", "gaussian", "lm", 20, 150, 1),                   # DigitEyes §6.1: 3D mouse, one camera
+    Experiment("two_finger_occlusion", "wssd", "bounded", 20, 80, 1),       # thesis §6.1: the proposed method
+    Experiment("full_hand_spread_flex", "imwplls", "bounded", 20, 100, 0),  # thesis §6.2.2: alternative, bounded
+    Experiment("index_thumb_grasp", "imwplls", "lm", 20, 120, 1, (15.0, 30.0, 45.0)),  # §6.2.1 (real images)
+    Experiment("two_camera_hand", "wssd", "bounded", 20, 100, 1),           # DigitEyes §6.2: 27 DOF, two cameras
+    Experiment("mouse3d", "gaussian", "lm", 20, 150, 1),                    # DigitEyes §6.1: 3D mouse, one camera
 ]
 
 
@@ -89,19 +105,25 @@ def run(seq, images, extract, config: TrackConfig) -> dict:
     }
 
 
+def image_config(method: str, exp: Experiment, args) -> ImageConfig:
+    """The front end's settings for one run of ``exp``: ``method`` with the command line's overrides."""
+    return ImageConfig(method=method, width_gain=args.width_gain,
+                       reacquire_deg=exp.reacquire if args.reacquire is None else args.reacquire)
+
+
 SWEEP_FRAMES = (60, 70, 80, 90, 100, 120)
 
 
 def sweep(name: str, args) -> int:
     """Track one experiment's motion played over each of :data:`SWEEP_FRAMES` frame counts."""
-    _, method, solver, steps, _, reextract = next(e for e in EXPERIMENTS if e[0] == name)
-    method, solver = args.method or method, args.solver or solver
+    exp = next(e for e in EXPERIMENTS if e.name == name)
+    method, solver, steps, reextract = args.method or exp.method, args.solver or exp.solver, exp.steps, exp.reextract
     rows = []
     for frames in SWEEP_FRAMES:
         seq = make_preset(name, frames=frames, size=args.size)
         images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras] for q in seq.q]
         extra = {"reextract": reextract if args.reextract is None else args.reextract}
-        r = run(seq, images, image_extractor(seq.model, seq.cameras, ImageConfig(method=method)),
+        r = run(seq, images, image_extractor(seq.model, seq.cameras, image_config(method, exp, args)),
                 TrackConfig(solver=solver, max_steps=steps, theta=args.theta, **extra))
         rows.append({"frames": frames, "fps_of_sequence": round(1 / float(seq.times_s[1] - seq.times_s[0]), 2),
                      **{k: v for k, v in r.items() if not k.startswith("q_") and k != "per_joint_mean_deg"}})
@@ -137,6 +159,9 @@ def main(argv=None) -> int:
     parser.add_argument("--sweep", action="store_true", help="the two-finger motion (or --only) at 6 speeds")
     parser.add_argument("--radius-scale", type=float, default=1.0,
                         help="render the phalanges this many times as thick as the tracker's model says")
+    parser.add_argument("--reacquire", type=lambda v: tuple(float(a) for a in v.split(",") if a), default=None,
+                        help="ImageConfig.reacquire_deg for every sequence, e.g. 15,30,45 ('' for none; "
+                             "default: each experiment's own)")
     parser.add_argument("--width-gain", type=float, default=0.0,
                         help="estimate the phalanx widths from the images with this gain (ImageConfig.width_gain)")
     args = parser.parse_args(argv)
@@ -145,7 +170,8 @@ def main(argv=None) -> int:
         return sweep(args.only or "two_finger_occlusion", args)
     rows, out = [], {"environment": {**environment(), "backend": jax.default_backend()}, "sequences": {}}
     RESULTS.mkdir(parents=True, exist_ok=True)
-    for name, method, solver, steps, frames, reextract in EXPERIMENTS:
+    for exp in EXPERIMENTS:
+        name, method, solver, steps, frames, reextract = exp[:6]
         if args.only and name != args.only:
             continue
         seq = make_preset(name, frames=12 if args.quick else (args.frames or frames), size=args.size)
@@ -160,10 +186,10 @@ def main(argv=None) -> int:
         config = TrackConfig(solver=solver, max_steps=steps, theta=args.theta, **extra)
         entry = {"method": method, "solver": solver, "steps": steps, "theta": args.theta, "size": args.size,
                  "robust_passes": config.robust_passes, "reextract": config.reextract, "render_s": render_s,
-                 "radius_scale": args.radius_scale, "width_gain": args.width_gain}
+                 "radius_scale": args.radius_scale, "width_gain": args.width_gain,
+                 "reacquire_deg": list(image_config(method, exp, args).reacquire_deg)}
         for label, extract in (
-                (method, image_extractor(seq.model, seq.cameras, ImageConfig(method=method,
-                                                                             width_gain=args.width_gain))),
+                (method, image_extractor(seq.model, seq.cameras, image_config(method, exp, args))),
                 ("exact+0.5px", exact_extractor(seq.model, seq.cameras, seq.q, noise_px=0.5))):
             r = run(seq, images, extract, config)
             entry[label] = {k: v for k, v in r.items() if not k.startswith("q_")}
