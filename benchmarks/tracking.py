@@ -102,6 +102,7 @@ def run(seq, images, extract, config: TrackConfig) -> dict:
         "fps_end_to_end": len(steady) / sum(total), "compile_first_frame_s": sum(reports[0].timings_s.values()),
         "median_ms": {s: 1e3 * float(np.median([r.timings_s.get(s, 0.0) for r in steady])) for s in stages},
         "q_filtered": q_f, "q_solved": q_s,
+        **{k: acc[k] for k in ("palm_error", "palm_rotation_deg") if k in acc},
     }
 
 
@@ -135,7 +136,8 @@ def sweep(name: str, args) -> int:
           f"range {min(means):.2f}-{max(means):.2f}; runs without loss: "
           f"{sum(row['lost_frames'] == 0 for row in rows)}/{len(rows)}")
     out = {"environment": {**environment(), "backend": jax.default_backend()}, "sequence": name, "method": method,
-           "solver": solver, "theta": args.theta, "size": args.size, "runs": rows,
+           "solver": solver, "theta": args.theta, "size": args.size, "reextract": reextract if args.reextract is None
+           else args.reextract, "reacquire_deg": list(image_config(method, exp, args).reacquire_deg), "runs": rows,
            "median_of_means_deg": float(np.median(means)), "mean_of_means_deg": float(np.mean(means))}
     path = RESULTS / f"tracking_sweep_{name}.json"
     write_json(out, path)

@@ -50,7 +50,13 @@ def _overlay(model: Model, cameras, images, report: StepReport) -> np.ndarray:
 
 
 def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarray) -> dict:
-    """Joint errors (deg; mm for lengths) and 2-D tip errors (px) of estimates against ground truth."""
+    """Joint errors (deg) and 2-D tip errors (px) of estimates against ground truth.
+
+    The joint errors cover the revolute joints other than the palm's. The palm's own entries
+    ("palm*": the mouse's planar palm, a free base's translation) get ``palm_error`` (deg or mm
+    per entry), and a free base's orientation ``palm_rotation_deg``, the angle of the rotation
+    between the estimated and the true palm (quaternions, either sign).
+    """
     from .kinematics import forward
 
     err = np.abs(q_est - q_truth)
@@ -63,12 +69,22 @@ def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarr
                         for c in as_rig(cameras)])
     tip_err = np.asarray(tip_err)
     joints = [i for i, k in enumerate(model.q_kinds) if k == "angle" and not model.q_names[i].startswith("palm")]
-    return {
+    out = {
         "joint_error_deg": {"mean": float(err_user[:, joints].mean()), "max": float(err_user[:, joints].max()),
                             "per_joint_mean": {model.q_names[i]: float(err_user[:, i].mean()) for i in joints},
                             "per_joint_max": {model.q_names[i]: float(err_user[:, i].max()) for i in joints}},
         "tip_error_px": {"mean": float(tip_err.mean()), "max": float(tip_err.max())},
     }
+    palm = [i for i, (n, k) in enumerate(zip(model.q_names, model.q_kinds)) if n.startswith("palm") and k != "quat"]
+    if palm:
+        out["palm_error"] = {"per_entry_mean": {model.q_names[i]: float(err_user[:, i].mean()) for i in palm},
+                             "per_entry_max": {model.q_names[i]: float(err_user[:, i].max()) for i in palm}}
+    if model.base_kind == "free":
+        a, b = np.asarray(q_est, float)[:, :4], np.asarray(q_truth, float)[:, :4]
+        cos = np.abs(np.sum(a * b, -1)) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
+        rot = np.degrees(2.0 * np.arccos(np.clip(cos, 0.0, 1.0)))
+        out["palm_rotation_deg"] = {"mean": float(rot.mean()), "max": float(rot.max())}
+    return out
 
 
 def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, extract, *,

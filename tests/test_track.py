@@ -9,7 +9,7 @@ import jaxhand as jh
 from jaxhand.features import empty_features, features_from_pose
 from jaxhand.io import FrameSource, read_angles_csv
 from jaxhand.render import make_preset
-from jaxhand.run import track_sequence
+from jaxhand.run import accuracy_summary, track_sequence
 from jaxhand.track import TrackConfig, Tracker
 
 
@@ -163,3 +163,25 @@ def test_reextract_searches_again_around_the_solved_pose(seq):
     np.testing.assert_allclose(rep.q_solved, seq.q[10], atol=1e-8)
     with pytest.raises(jh.InputError, match="reextract"):
         TrackConfig(reextract=-1)
+
+
+def test_accuracy_summary_reports_the_palm_pose():
+    m = jh.builtin_model("hand27")
+    cam = jh.Orthographic(R=np.eye(3), t=np.array([0.0, 0.0, 500.0]), scale=1.0, center=(160, 120), size=(320, 240))
+    truth = np.stack([np.asarray(m.q_default)] * 2)
+    est = truth.copy()
+    half = np.radians(10.0) / 2   # 10 degrees about (0, 0.6, 0.8), composed with the true orientation
+    turn = np.array([np.cos(half), 0.0, 0.6 * np.sin(half), 0.8 * np.sin(half)])
+    w1, v1 = turn[0], turn[1:]
+    w2, v2 = truth[0, 0], truth[0, 1:4]
+    est[:, :4] = np.r_[w1 * w2 - v1 @ v2, w1 * v2 + w2 * v1 + np.cross(v1, v2)]
+    est[1, :4] *= -1.0   # the same orientation
+    est[:, 4:6] += (3.0, -4.0)
+    est[:, m.q_lookup("index_pip")] += np.radians(2.0)
+    acc = accuracy_summary(m, cam, est, truth)
+    assert acc["palm_rotation_deg"]["mean"] == pytest.approx(10.0, abs=1e-9)
+    assert acc["palm_rotation_deg"]["max"] == pytest.approx(10.0, abs=1e-9)
+    assert acc["palm_error"]["per_entry_mean"] == pytest.approx({"palm_tx": 3.0, "palm_ty": 4.0, "palm_tz": 0.0})
+    assert acc["joint_error_deg"]["per_joint_max"]["index_pip"] == pytest.approx(2.0)
+    assert acc["joint_error_deg"]["mean"] == pytest.approx(2.0 / 21)   # 21 finger and thumb joints
+    assert "palm_rotation_deg" not in accuracy_summary(jh.builtin_model("hand21"), cam, truth[:, 7:], truth[:, 7:])
