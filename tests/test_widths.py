@@ -82,7 +82,7 @@ def test_front_end_uses_the_estimated_radii(hand):
     ok = plain.cameras[0].samplers.ok
     np.testing.assert_allclose(diag.cameras[0].samplers.spacing_px[ok] / plain.cameras[0].samplers.spacing_px[ok],
                                1.25, rtol=1e-9)
-    with pytest.raises(ValueError, match=r"radius_mm: expected shape \(15,\)"):
+    with pytest.raises(jh.InputError, match=r"radius_mm: expected shape \(15,\)"):
         dataclasses.replace(state, radius_mm=np.ones(3)).model_radii(m)
     with pytest.raises(jh.InputError, match="width_gain"):
         ImageConfig(width_gain=1.5)

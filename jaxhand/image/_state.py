@@ -9,6 +9,8 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._errors import InputError
+
 __all__ = ["ImageState"]
 
 
@@ -60,5 +62,5 @@ class ImageState:
         if self.radius_mm is None:
             return model
         if np.shape(self.radius_mm) != (model.n_links,):
-            raise ValueError(f"ImageState.radius_mm: expected shape ({model.n_links},), got {np.shape(self.radius_mm)}")
+            raise InputError(f"ImageState.radius_mm: expected shape ({model.n_links},), got {np.shape(self.radius_mm)}")
         return eqx.tree_at(lambda m: m.link_radius_mm, model, jnp.asarray(self.radius_mm, float))
