@@ -69,6 +69,8 @@ def test_first_estimate_fills_unmeasured_phalanges_with_the_hand_scale(hand):
     quarter = update_widths(images, m, hand.cameras, q, ImageConfig(), None, gain=0.25)
     r0 = np.asarray(m.link_radius_mm)
     np.testing.assert_allclose(quarter.radius_mm - r0, 0.25 * (plain.radius_mm - r0), atol=1e-12)
+    with pytest.raises(jh.InputError, match=r"gain must lie in \[0, 1\], got 1.5"):
+        update_widths(images, m, hand.cameras, q, ImageConfig(), None, gain=1.5)
 
 
 def test_front_end_uses_the_estimated_radii(hand):

@@ -511,6 +511,8 @@ def update_widths(images, model: Model, cameras, q, config: ImageConfig | None =
     from ..filter import width_update
 
     config = ImageConfig() if config is None else config
+    if gain is not None and not 0 <= gain <= 1:
+        raise InputError(f"update_widths: gain must lie in [0, 1], got {gain!r}")
     rig = as_rig(cameras)
     state = _matching_state(state, len(rig), model, config)
     measures, valid = measure_widths(images, model, rig, q, config, state)
@@ -719,6 +721,29 @@ def _search_turns(grey: np.ndarray, model: Model, cam, chain: np.ndarray, config
     return _Turns(links=links, view=view, observe=observe)
 
 
+def _turns_to_try(model: Model, q: np.ndarray, config: ImageConfig, obs: _Observation, view: _View
+                  ) -> list[tuple[int, np.ndarray]]:
+    """(link, turned pose) of every turn :func:`_reacquire` tries, link by link in order: the
+    links that qualify (see there), each with its joint turned by ``config.reacquire_deg``
+    both ways within the joint limits (a turn the limits cancel is left out)."""
+    parent = _parent_links(model)
+    frame_q = np.array([model.q_index[f] for f in model.link_frame])
+    anchored = np.where(parent >= 0, view.valid[np.maximum(parent, 0)], True)
+    todo = np.flatnonzero(~view.valid & anchored & (obs.visibility.visible_share >= _REACQUIRE_MIN_VISIBLE)
+                          & obs.samplers.ok & (frame_q >= 0)
+                          & np.array([model.joint_kinds[f] == "revolute" for f in model.link_frame]))
+    lo, hi = np.asarray(model.q_lower, float), np.asarray(model.q_upper, float)
+    turns = []
+    for link in todo:
+        j = frame_q[link]
+        for turn in np.radians([a * sign for a in config.reacquire_deg for sign in (1.0, -1.0)]):
+            qc = q.copy()
+            qc[j] = np.clip(q[j] + turn, lo[j], hi[j])
+            if qc[j] != q[j]:
+                turns.append((int(link), qc))
+    return turns
+
+
 def _reacquire(grey: np.ndarray, model: Model, cam, q: np.ndarray, chain: np.ndarray, config: ImageConfig, search,
                tmpl: np.ndarray, tmask: np.ndarray, obs: _Observation, view: _View, clock: _Clock
                ) -> tuple[_View, np.ndarray]:
@@ -742,34 +767,16 @@ def _reacquire(grey: np.ndarray, model: Model, cam, q: np.ndarray, chain: np.nda
     """
     if model.n_links == 1:  # a one-link view skips the cutting; the batch would cut by an empty pill
         return _reacquire_full(grey, model, cam, q, chain, config, search, tmpl, tmask, obs, view, clock)
-    parent = _parent_links(model)
-    frame_q = np.array([model.q_index[f] for f in model.link_frame])
-    anchored = np.where(parent >= 0, view.valid[np.maximum(parent, 0)], True)
-    todo = np.flatnonzero(~view.valid & anchored & (obs.visibility.visible_share >= _REACQUIRE_MIN_VISIBLE)
-                          & obs.samplers.ok
-                          & (frame_q >= 0)
-                          & np.array([model.joint_kinds[f] == "revolute" for f in model.link_frame]))
+    tried = _turns_to_try(model, q, config, obs, view)
     reacquired = np.zeros(model.n_links, bool)
-    if not len(todo):
+    if not tried:
         return view, reacquired
-    lo, hi = np.asarray(model.q_lower, float), np.asarray(model.q_upper, float)
     out = {k: getattr(view, k).copy() for k in ("lines", "valid", "weight", "single", "tips", "tip_valid")}
     tip_of = {link: t for t, link in enumerate(model.tip_links)}
-    links, qs = [], []
-    for link in todo:
-        j = frame_q[link]
-        for turn in np.radians([a * sign for a in config.reacquire_deg for sign in (1.0, -1.0)]):
-            qc = q.copy()
-            qc[j] = np.clip(q[j] + turn, lo[j], hi[j])
-            if qc[j] == q[j]:
-                continue
-            links.append(link)
-            qs.append(qc)
-    if not qs:
-        return dataclasses.replace(view, **out), reacquired
-    turns = _search_turns(grey, model, cam, chain, config, search, tmpl, tmask, np.array(links), qs, clock)
+    turns = _search_turns(grey, model, cam, chain, config, search, tmpl, tmask, np.array([k for k, _ in tried]),
+                          [qc for _, qc in tried], clock)
     found = turns.view
-    for link in todo:
+    for link in dict.fromkeys(k for k, _ in tried):
         best, best_score = None, view.profiles.values.shape[1] - 1   # at least one inlier per sampler
         for i in np.flatnonzero(turns.links == link):  # in the order the turns were made
             score = int(found.inliers[i].sum())
@@ -798,27 +805,13 @@ def _reacquire_full(grey: np.ndarray, model: Model, cam, q: np.ndarray, chain: n
                     ) -> tuple[_View, np.ndarray]:
     """:func:`_reacquire` the straightforward way, each turn's whole view observed and searched
     (the reference the batch is tested against; also a one-link model's)."""
-    parent = _parent_links(model)
-    frame_q = np.array([model.q_index[f] for f in model.link_frame])
-    anchored = np.where(parent >= 0, view.valid[np.maximum(parent, 0)], True)
-    todo = np.flatnonzero(~view.valid & anchored & (obs.visibility.visible_share >= _REACQUIRE_MIN_VISIBLE)
-                          & obs.samplers.ok
-                          & (frame_q >= 0)
-                          & np.array([model.joint_kinds[f] == "revolute" for f in model.link_frame]))
+    tried = _turns_to_try(model, q, config, obs, view)
     reacquired = np.zeros(model.n_links, bool)
-    if not len(todo):
-        return view, reacquired
-    lo, hi = np.asarray(model.q_lower, float), np.asarray(model.q_upper, float)
     out = {k: getattr(view, k).copy() for k in ("lines", "valid", "weight", "single", "tips", "tip_valid")}
     tip_of = {link: t for t, link in enumerate(model.tip_links)}
-    for link in todo:
-        j = frame_q[link]
+    for link in dict.fromkeys(k for k, _ in tried):
         best, best_score = None, view.profiles.values.shape[1] - 1   # at least one inlier per sampler
-        for turn in np.radians([a * sign for a in config.reacquire_deg for sign in (1.0, -1.0)]):
-            qc = q.copy()
-            qc[j] = np.clip(q[j] + turn, lo[j], hi[j])
-            if qc[j] == q[j]:
-                continue
+        for qc in (qc for k, qc in tried if k == link):
             cand = _search_view(grey, model, _observe(grey, model, cam, qc, chain, config), config, search, tmpl,
                                 tmask, clock)
             score = int(cand.inliers[link].sum())
