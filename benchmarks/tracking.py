@@ -61,12 +61,12 @@ class Experiment(NamedTuple):
 # The documents' choice of method for each experiment, except the two-camera hand, which runs the
 # thesis's proposed method (WSSD) rather than an edge search like DigitEyes' ("gaussian": see
 # --method). Re-extraction is what the occlusion sequences need; the open 21-DOF hand does better
-# without it (2.50 deg at 91 frames/s against 3.04 deg at 44 on the run quoted in the README),
+# without it (2.50 deg at 91 frames/s against 3.04 deg at 44 in the run of the previous round),
 # index + thumb and the mouse much worse. Re-acquisition (turning the joint of a phalanx the
 # search lost) is what index + thumb needs, whose distal phalanges turn faster than the filter
 # predicts (5.25 -> 3.07 deg); elsewhere it changed little (two fingers 1.88 -> 1.89, open hand
 # 2.50 -> 2.67, mouse 1.50 -> 1.50) or cost time for nothing (two-camera hand: 0.86 -> 1.02 deg
-# at a third of the frame rate).
+# at a third of the frame rate, before the turns were searched as one batch).
 EXPERIMENTS = [
     Experiment("two_finger_occlusion", "wssd", "bounded", 20, 80, 1),       # thesis §6.1: the proposed method
     Experiment("full_hand_spread_flex", "imwplls", "bounded", 20, 100, 0),  # thesis §6.2.2: alternative, bounded
