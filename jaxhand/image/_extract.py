@@ -771,33 +771,23 @@ def _reacquire(grey: np.ndarray, model: Model, cam, q: np.ndarray, chain: np.nda
     reacquired = np.zeros(model.n_links, bool)
     if not tried:
         return view, reacquired
-    out = {k: getattr(view, k).copy() for k in ("lines", "valid", "weight", "single", "tips", "tip_valid")}
-    tip_of = {link: t for t, link in enumerate(model.tip_links)}
-    turns = _search_turns(grey, model, cam, chain, config, search, tmpl, tmask, np.array([k for k, _ in tried]),
-                          [qc for _, qc in tried], clock)
+    links = np.array([k for k, _ in tried])
+    turns = _search_turns(grey, model, cam, chain, config, search, tmpl, tmask, links, [qc for _, qc in tried], clock)
     found = turns.view
-    for link in dict.fromkeys(k for k, _ in tried):
-        best, best_score = None, view.profiles.values.shape[1] - 1   # at least one inlier per sampler
-        for i in np.flatnonzero(turns.links == link):  # in the order the turns were made
-            score = int(found.inliers[i].sum())
-            if found.valid[i] and score > best_score:
-                best, best_score = i, score
-        if best is None:
-            continue
-        reacquired[link] = True
-        for k in ("lines", "valid", "weight", "single"):
-            out[k][link] = getattr(found, k)[best]
-        if link in tip_of:
-            # The tip of the winning turn's link, from its line alone (the other links' lines
-            # only place their own tips).
-            line_ok = np.zeros(model.n_links, bool)
-            p_ax, v_ax = np.zeros((model.n_links, 2)), np.tile([1.0, 0.0], (model.n_links, 1))
-            line_ok[link], p_ax[link], v_ax[link] = found.valid[best], found.p_ax[best], found.v_ax[best]
-            tips, tip_valid, *_ = _tips(grey, model, turns.observe(best), line_ok, p_ax, v_ax, config)
-            clock.lap("tips")
-            out["tips"][tip_of[link]] = tips[tip_of[link]]
-            out["tip_valid"][tip_of[link]] = tip_valid[tip_of[link]]
-    return dataclasses.replace(view, **out), reacquired
+
+    def tip(i: int, link: int) -> tuple[np.ndarray, bool]:
+        # The tip of the winning turn's link, from its line alone (the other links' lines only
+        # place their own tips).
+        line_ok = np.zeros(model.n_links, bool)
+        p_ax, v_ax = np.zeros((model.n_links, 2)), np.tile([1.0, 0.0], (model.n_links, 1))
+        line_ok[link], p_ax[link], v_ax[link] = found.valid[i], found.p_ax[i], found.v_ax[i]
+        tips, tip_valid, *_ = _tips(grey, model, turns.observe(i), line_ok, p_ax, v_ax, config)
+        clock.lap("tips")
+        t = model.tip_links.index(link)
+        return tips[t], tip_valid[t]
+
+    return _take_best_turns(model, view, links, found.valid, found.inliers.sum(axis=(1, 2)),
+                            lambda i: {k: getattr(found, k)[i] for k in _TURN_FIELDS}, tip)
 
 
 def _reacquire_full(grey: np.ndarray, model: Model, cam, q: np.ndarray, chain: np.ndarray, config: ImageConfig,
@@ -806,25 +796,44 @@ def _reacquire_full(grey: np.ndarray, model: Model, cam, q: np.ndarray, chain: n
     """:func:`_reacquire` the straightforward way, each turn's whole view observed and searched
     (the reference the batch is tested against; also a one-link model's)."""
     tried = _turns_to_try(model, q, config, obs, view)
+    links = np.array([k for k, _ in tried], int)
+    views = [_search_view(grey, model, _observe(grey, model, cam, qc, chain, config), config, search, tmpl, tmask,
+                          clock) for _, qc in tried]
+
+    def tip(i: int, link: int) -> tuple[np.ndarray, bool]:
+        t = model.tip_links.index(link)
+        return views[i].tips[t], views[i].tip_valid[t]
+
+    return _take_best_turns(model, view, links, np.array([v.valid[k] for v, k in zip(views, links)], bool),
+                            np.array([v.inliers[k].sum() for v, k in zip(views, links)], int),
+                            lambda i: {f: getattr(views[i], f)[links[i]] for f in _TURN_FIELDS}, tip)
+
+
+#: The per-link fields of a :class:`_View` a winning turn replaces (its tip aside).
+_TURN_FIELDS = ("lines", "valid", "weight", "single")
+
+
+def _take_best_turns(model: Model, view: _View, links: np.ndarray, valid: np.ndarray, score: np.ndarray,
+                     row: Callable[[int], dict], tip: Callable[[int, int], tuple]) -> tuple[_View, np.ndarray]:
+    """``view`` with each turned link's fields from its best turn: turn ``i`` searched link
+    ``links[i]``, found it (``valid[i]``) with ``score[i]`` boundary inliers; the turn with the
+    most, at least one per sampler (the first of equals), gives ``row(i)`` and, for a tip link,
+    ``tip(i, link)``. Returns the view and which links were re-acquired."""
+    out = {k: getattr(view, k).copy() for k in (*_TURN_FIELDS, "tips", "tip_valid")}
     reacquired = np.zeros(model.n_links, bool)
-    out = {k: getattr(view, k).copy() for k in ("lines", "valid", "weight", "single", "tips", "tip_valid")}
-    tip_of = {link: t for t, link in enumerate(model.tip_links)}
-    for link in dict.fromkeys(k for k, _ in tried):
+    for link in dict.fromkeys(links.tolist()):
         best, best_score = None, view.profiles.values.shape[1] - 1   # at least one inlier per sampler
-        for qc in (qc for k, qc in tried if k == link):
-            cand = _search_view(grey, model, _observe(grey, model, cam, qc, chain, config), config, search, tmpl,
-                                tmask, clock)
-            score = int(cand.inliers[link].sum())
-            if cand.valid[link] and score > best_score:
-                best, best_score = cand, score
+        for i in np.flatnonzero(links == link):  # in the order the turns were made
+            if valid[i] and score[i] > best_score:
+                best, best_score = i, score[i]
         if best is None:
             continue
         reacquired[link] = True
-        for k in ("lines", "valid", "weight", "single"):
-            out[k][link] = getattr(best, k)[link]
-        if link in tip_of:
-            out["tips"][tip_of[link]] = best.tips[tip_of[link]]
-            out["tip_valid"][tip_of[link]] = best.tip_valid[tip_of[link]]
+        for k, v in row(best).items():
+            out[k][link] = v
+        if link in model.tip_links:
+            t = model.tip_links.index(link)
+            out["tips"][t], out["tip_valid"][t] = tip(best, link)
     return dataclasses.replace(view, **out), reacquired
 
 
