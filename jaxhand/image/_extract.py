@@ -168,14 +168,7 @@ def _observe(grey: np.ndarray, model: Model, camera, q: np.ndarray, chain: np.nd
     clock.lap("kinematics")
     samplers = place_link_samplers(start, end, radius, config.samplers)
     clock.lap("samplers")
-    if isinstance(camera, Perspective):
-        # A perspective camera shows each end's circle at its own size: radius scales as 1/depth.
-        mid = depth.mean(-1, keepdims=True)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r_ends = radius[:, None] * mid / depth
-    else:
-        r_ends = np.stack([radius, radius], -1)
-    r_ends = np.where(samplers.ok[:, None], r_ends, np.nan)
+    r_ends = _end_radii(camera, depth, radius, samplers.ok)
     vis = compute_visibility(start, end, depth, r_ends[:, 0], r_ends[:, 1], chain, camera.size, config.visibility)
     clock.lap("visibility")
     values, usable = sample_profiles(grey, samplers.points, config.samplers.interpolation)
@@ -608,8 +601,9 @@ _REACQUIRE_MIN_VISIBLE = 0.9
 
 
 def _end_radii(camera, depth: np.ndarray, radius: np.ndarray, ok: np.ndarray) -> np.ndarray:
-    """(links, 2) the radius in pixels of each link end's circle, as :func:`_observe` computes it:
-    a perspective camera scales it as 1/depth; NaN for a link without samplers."""
+    """(links, 2) the radius in pixels of each link end's circle: a perspective camera shows each
+    end's circle at its own size (the radius at the link's mid depth scaled as 1/depth); NaN for
+    a link without samplers."""
     if isinstance(camera, Perspective):
         mid = depth.mean(-1, keepdims=True)
         with np.errstate(divide="ignore", invalid="ignore"):
