@@ -22,7 +22,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .camera import Camera
-from .kinematics import _pose
+from .kinematics import pose as pose_at
 from .model import Model
 
 __all__ = ["keypoints", "keypoint_pixels", "autodiff_jacobian", "central_difference_jacobian",
@@ -31,7 +31,7 @@ __all__ = ["keypoints", "keypoint_pixels", "autodiff_jacobian", "central_differe
 
 def keypoints(model: Model, q) -> tuple[Float[Array, "p 3"], np.ndarray]:
     """Link start and end points (world) stacked, and the frame each is attached to."""
-    pose = _pose(model, q)
+    pose = pose_at(model, q)
     frames = np.concatenate([model.link_frame, model.link_frame]).astype(int)
     return jnp.concatenate([pose.link_start, pose.link_end]), frames
 
@@ -71,7 +71,7 @@ def geometric_jacobian(model: Model, q) -> Float[Array, "p 3 nq"]:
 
     q = jnp.asarray(q)
     p, attached = keypoints(model, q)
-    return point_jacobian(model, q, _pose(model, q).frames, p, attached)
+    return point_jacobian(model, q, pose_at(model, q).frames, p, attached)
 
 
 @eqx.filter_jit

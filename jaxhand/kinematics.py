@@ -17,7 +17,7 @@ from .camera import Camera
 from .model import Model
 
 __all__ = ["dh_transform", "dh_transforms", "quat_to_rotation", "base_pose", "frame_poses", "Pose", "View",
-           "forward", "project_pose", "views", "link_points", "validate_q", "random_q", "clip_q",
+           "pose", "forward", "project_pose", "views", "link_points", "validate_q", "random_q", "clip_q",
            "normalize_q"]
 
 
@@ -96,7 +96,9 @@ class Pose(eqx.Module):
     tips: Float[Array, "*b tips 3"]
 
 
-def _pose(model: Model, q) -> Pose:
+def pose(model: Model, q: Float[Array, " nq"]) -> Pose:
+    """Frame poses, link axes and tip centres in world coordinates (unjitted, for traced use;
+    :func:`forward` is its jitted form)."""
     T = frame_poses(model, q)
     lf = np.array(model.link_frame, dtype=int)
     axis = np.array(model.link_axis, dtype=int)
@@ -109,7 +111,7 @@ def _pose(model: Model, q) -> Pose:
 @eqx.filter_jit
 def forward(model: Model, q: Float[Array, " nq"]) -> Pose:
     """Frame poses, link axes and tip centres in world coordinates (jitted)."""
-    return _pose(model, q)
+    return pose(model, q)
 
 
 def link_points(pose: Pose, fractions: Float[Array, " k"]) -> Float[Array, "links k 3"]:
@@ -148,7 +150,7 @@ def _view(model: Model, camera: Camera, pose: Pose) -> View:
 @eqx.filter_jit
 def project_pose(model: Model, camera: Camera, q: Float[Array, " nq"]) -> View:
     """The model at state q seen by one camera (jitted)."""
-    return _view(model, camera, _pose(model, q))
+    return _view(model, camera, pose(model, q))
 
 
 def views(model: Model, cameras, q) -> tuple[View, ...]:

@@ -38,7 +38,8 @@ from jaxtyping import Array, Float
 from ._errors import InputError
 from .camera import as_rig
 from .features import Features, validate_features
-from .kinematics import _pose, link_points
+from .kinematics import link_points
+from .kinematics import pose as pose_at
 from .model import Model
 
 __all__ = ["DEFAULT_LINK_FRACTIONS", "ResidualArgs", "make_residual_args", "residuals", "cost",
@@ -112,7 +113,7 @@ def _stack_residuals(feats: Features, tips_px, pts_px) -> Float[Array, " r"]:
 
 def residuals(q: Float[Array, " nq"], args: ResidualArgs) -> Float[Array, " r"]:
     """The stacked residual vector at state q (optimistix signature ``fn(y, args)``), pixels."""
-    pose = _pose(args.model, q)
+    pose = pose_at(args.model, q)
     return jnp.concatenate([_camera_residuals(args.model, cam, f, pose, args.fractions)
                             for cam, f in zip(args.cameras, args.features)])
 
@@ -154,7 +155,7 @@ def point_jacobian(model: Model, q: Float[Array, " nq"], frames: Float[Array, "f
     ``z_mount x (p - o_root)`` for its yaw.
 
     Args:
-        frames: T_world_frame of every frame at q (``_pose(model, q).frames``).
+        frames: T_world_frame of every frame at q (``kinematics.pose(model, q).frames``).
         attached: static (p,) index of the frame each point is attached to.
     """
     dtype = points.dtype
@@ -206,7 +207,7 @@ def residuals_and_jacobian(q: Float[Array, " nq"], args: ResidualArgs) -> tuple[
     once instead of carrying one tangent per q entry through every 4x4 product.
     """
     model = args.model
-    pose = _pose(model, q)
+    pose = pose_at(model, q)
     K = args.fractions.shape[0]
     pts = link_points(pose, args.fractions)                                           # (links, K, 3)
     points = jnp.concatenate([pose.tips, pts.reshape(-1, 3)])

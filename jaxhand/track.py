@@ -37,7 +37,8 @@ from ._errors import InputError
 from .camera import as_rig
 from .features import Features
 from .filter import GHKState, ghk_init, ghk_predict, ghk_update
-from .kinematics import _pose, clip_q, link_points, validate_q
+from .kinematics import clip_q, link_points, validate_q
+from .kinematics import pose as pose_at
 from .model import Model
 
 __all__ = ["TrackConfig", "TrackState", "StepReport", "Tracker", "confidence_of", "exact_extractor",
@@ -185,7 +186,7 @@ _filter_step = eqx.filter_jit(_filter_update)
 
 
 def _feature_errors(model: Model, cameras: tuple, features: tuple, q, fractions) -> tuple:
-    pose = _pose(model, q)
+    pose = pose_at(model, q)
     out = []
     for cam, f in zip(cameras, features):
         tips_px, _ = cam.project(pose.tips)

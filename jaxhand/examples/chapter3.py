@@ -38,7 +38,8 @@ import numpy as np
 
 from ..camera import Orthographic
 from ..features import Features, features_from_pose
-from ..kinematics import _pose, link_points
+from ..kinematics import link_points
+from ..kinematics import pose as pose_at
 from ..model import Model, builtin_model
 from ..residuals import ResidualArgs, cost
 from ..solve import FitConfig, FitResult, fit
@@ -273,7 +274,7 @@ def plot_overlay(example: Example, result: FitResult, path: Path) -> Path:
 def _iterate_geometry(model: Model, cam: Orthographic, qs):
     """Pixels of link starts, ends, tips and link residual points for a stack of states."""
     def one(q):
-        pose = _pose(model, q)
+        pose = pose_at(model, q)
         return (cam.project(pose.link_start)[0], cam.project(pose.link_end)[0], cam.project(pose.tips)[0],
                 cam.project(link_points(pose, jnp.asarray(FRACTIONS)))[0])
 

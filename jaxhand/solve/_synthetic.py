@@ -13,7 +13,7 @@ import numpy as np
 
 from ..camera import as_rig
 from ..features import Features, line_through
-from ..kinematics import _pose
+from ..kinematics import pose as pose_at
 from ..model import Model
 
 __all__ = ["features_from_poses"]
@@ -22,7 +22,7 @@ __all__ = ["features_from_poses"]
 @eqx.filter_jit
 def _project_all(model: Model, rig: tuple, qs):
     def one(q):
-        pose = _pose(model, q)
+        pose = pose_at(model, q)
         return tuple((cam.project(pose.link_start)[0], cam.project(pose.link_end)[0], cam.project(pose.tips)[0])
                      for cam in rig)
 
