@@ -33,10 +33,13 @@ _MIN_DEPTH_MM = 1e-6
 
 
 def _size(size) -> tuple[int, int]:
-    w, h = (int(v) for v in size)
-    if w <= 0 or h <= 0:
-        raise CameraError(f"camera size must be positive (width, height), got {size!r}")
-    return (w, h)
+    try:
+        w, h = (float(v) for v in size)
+    except (TypeError, ValueError):
+        raise CameraError(f"camera size must be two positive integers (width, height), got {size!r}") from None
+    if not (w > 0 and h > 0 and w == int(w) and h == int(h)):
+        raise CameraError(f"camera size must be two positive integers (width, height), got {size!r}")
+    return (int(w), int(h))
 
 
 class Orthographic(eqx.Module):
@@ -187,9 +190,13 @@ def _camera_from_dict(d: dict, src: str) -> Camera:
     def arr(key, shape):
         if key not in d:
             raise CameraError(f"{src}: missing field {key!r}")
-        a = np.asarray(d[key], float)
-        if a.shape != shape or not np.all(np.isfinite(a)):
-            raise CameraError(f"{src}: field {key!r} must be finite with shape {shape}, got {d[key]!r}")
+        try:
+            a = np.asarray(d[key], float)
+        except (TypeError, ValueError):   # a string, a ragged list, a null
+            a = None
+        if a is None or a.shape != shape or not np.all(np.isfinite(a)):
+            want = "a number" if shape == () else f"finite numbers of shape {shape} (nested lists)"
+            raise CameraError(f"{src}: field {key!r} must be {want}, got {d[key]!r}")
         return a
 
     kind = d.get("kind")
@@ -204,12 +211,18 @@ def _camera_from_dict(d: dict, src: str) -> Camera:
     if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
         raise CameraError(f"{src}: field 'R' is not a rotation matrix")
     size = arr("size", (2,))
+    if not np.all((size > 0) & (size == np.round(size))):
+        raise CameraError(f"{src}: field 'size' must be two positive integers (width, height), got {d['size']!r}")
     if kind == "orthographic":
         scale = float(arr("scale", ()))
         if scale <= 0:
             raise CameraError(f"{src}: field 'scale' must be > 0, got {scale}")
         return Orthographic(R=R, t=arr("t", (3,)), scale=scale, center=arr("center", (2,)), size=size)
-    return Perspective(K=arr("K", (3, 3)), R=R, t=arr("t", (3,)), size=size)
+    K = arr("K", (3, 3))
+    if not (K[0, 0] > 0 and K[1, 1] > 0 and np.allclose(K[2], [0.0, 0.0, 1.0]) and K[1, 0] == 0):
+        raise CameraError(f"{src}: field 'K' must be an intrinsic matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]] "
+                          f"with fx, fy > 0 px, got {d['K']!r}")
+    return Perspective(K=K, R=R, t=arr("t", (3,)), size=size)
 
 
 def camera_to_dict(camera: Camera) -> dict:
@@ -237,6 +250,8 @@ def load_camera(path: str | Path) -> tuple[Camera, ...]:
     except json.JSONDecodeError as err:
         raise CameraError(f"{path}: cannot parse: {err}") from err
     items = data if isinstance(data, list) else [data]
+    if not items:
+        raise CameraError(f"{path}: the file lists no camera")
     return tuple(camera_from_dict(d, f"{path}[{i}]" if isinstance(data, list) else str(path))
                  for i, d in enumerate(items))
 

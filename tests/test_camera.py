@@ -1,3 +1,5 @@
+import json
+
 import cv2
 import jax.numpy as jnp
 import numpy as np
@@ -62,3 +64,27 @@ def test_camera_file_round_trip_and_errors(tmp_path):
                                         '"scale": -1, "center": [0,0], "size": [10,10]}')
     with pytest.raises(jh.CameraError, match=r"'scale' must be > 0"):
         jh.load_camera(tmp_path / "bad2.json")
+
+
+@pytest.mark.parametrize("field, value, match", [
+    ("R", "identity", "field 'R' must be finite numbers of shape \\(3, 3\\)"),
+    ("R", [[1, 0, 0], [0, 1], [0, 0, 1]], "field 'R' must be finite numbers"),
+    ("size", ["320", "x"], "field 'size' must be finite numbers of shape \\(2,\\)"),
+    ("size", [320.5, 240], "field 'size' must be two positive integers"),
+    ("size", [0, 240], "field 'size' must be two positive integers"),
+    ("K", [[0, 0, 0], [0, 0, 0], [0, 0, 0]], "field 'K' must be an intrinsic matrix"),
+    ("K", [[400, 0, 160], [0, 400, 120], [0, 0, 2]], "field 'K' must be an intrinsic matrix"),
+])
+def test_malformed_perspective_camera_files_name_the_field(tmp_path, field, value, match):
+    d = {"kind": "perspective", "K": [[400, 0, 159.5], [0, 400, 119.5], [0, 0, 1]], "R": np.eye(3).tolist(),
+         "t": [0, 0, 400], "size": [320, 240], field: value}
+    path = tmp_path / "cam.json"
+    path.write_text(json.dumps(d))
+    with pytest.raises(jh.CameraError, match=match):
+        jh.load_camera(path)
+
+
+def test_empty_rig_file_is_an_error(tmp_path):
+    (tmp_path / "rig.json").write_text("[]")
+    with pytest.raises(jh.CameraError, match="lists no camera"):
+        jh.load_camera(tmp_path / "rig.json")

@@ -94,3 +94,22 @@ def test_parse_pose_forms(tmp_path):
         parse_pose(m, "index_dip=30")
     with pytest.raises(jh.InputError, match="neither 'default'"):
         parse_pose(m, "bent")
+
+
+def test_image_folder_sorts_frame_numbers_naturally(tmp_path):
+    d = tmp_path / "frames"
+    d.mkdir()
+    for i in range(12):   # frame_0 .. frame_11 without zero padding: string order would put 10 after 1
+        cv2.imwrite(str(d / f"frame_{i}.png"), np.full((4, 4), 10 * i, np.uint8))
+    assert [int(f.image[0, 0]) for f in FrameSource(d)] == [10 * i for i in range(12)]
+
+
+def test_frame_of_another_size_names_file_and_both_sizes(tmp_path):
+    d = _folder(tmp_path, 3)
+    cv2.imwrite(str(d / "frame_0001.png"), np.zeros((6, 8), np.uint8))
+    frames = list(FrameSource(d, size=(16, 12)))
+    assert frames[0].image is not None and frames[2].image is not None
+    assert frames[1].image is None and "frame_0001.png: frame 1 is 8x6 px but the camera's image size is 16x12" \
+        in frames[1].error
+    with pytest.raises(jh.InputError, match=r"frame 0 is 16x12 px but the camera's image size is 320x240.*camera file"):
+        list(open_frames([d], sizes=[(320, 240)])[0])

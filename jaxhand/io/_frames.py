@@ -8,6 +8,7 @@ its place in the sequence.
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -16,7 +17,7 @@ import numpy as np
 
 from .._errors import InputError
 
-__all__ = ["Frame", "FrameSource", "open_frames", "IMAGE_SUFFIXES"]
+__all__ = ["Frame", "FrameSource", "open_frames", "natural_key", "IMAGE_SUFFIXES"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 
@@ -31,6 +32,12 @@ class Frame:
     error: str | None = None
 
 
+def natural_key(name: str) -> tuple:
+    """Sort key that orders digit runs by value, so ``frame_2`` comes before ``frame_10``."""
+    return tuple((0, int(part), part) if part.isdigit() else (1, 0, part.lower())
+                 for part in re.split(r"(\d+)", name) if part)
+
+
 def _grey(image: np.ndarray) -> np.ndarray:
     if image.ndim == 3:
         code = cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY
@@ -41,26 +48,32 @@ def _grey(image: np.ndarray) -> np.ndarray:
 
 
 class FrameSource:
-    """Frames of a video file or an image folder (sorted by file name), as grey uint8 images.
+    """Frames of a video file or an image folder (in natural order of the file names, so
+    ``frame_2`` comes before ``frame_10``), as grey uint8 images.
 
     Args:
         path: a video file (anything OpenCV's FFmpeg backend reads) or a folder of images.
         fps: frames per second for image folders, and for videos whose file lacks a frame rate.
+        size: the (width, height) in pixels every frame must have (the camera's), or None. The
+            first frame of another size is an error (the camera does not fit the input); a later
+            one is yielded as unreadable, with a message naming the file and both sizes.
 
     Raises:
-        InputError: the path does not exist, the folder holds no images, or the video has no
-            frames or cannot be opened.
+        InputError: the path does not exist, the folder holds no images, the video has no
+            frames or cannot be opened, or the first frame's size is not ``size``.
     """
 
-    def __init__(self, path: str | Path, fps: float = 25.0):
+    def __init__(self, path: str | Path, fps: float = 25.0, size: tuple[int, int] | None = None):
         self.path = Path(path)
-        if fps <= 0:
+        if not fps > 0:
             raise InputError(f"fps must be > 0, got {fps}")
         self.fps = float(fps)
+        self.size = None if size is None else (int(size[0]), int(size[1]))
         if not self.path.exists():
             raise InputError(f"{self.path}: no such video file or image folder")
         if self.path.is_dir():
-            self.files = sorted(p for p in self.path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+            self.files = sorted((p for p in self.path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES),
+                                key=lambda p: natural_key(p.name))
             if not self.files:
                 raise InputError(f"{self.path}: the folder holds no images ({', '.join(IMAGE_SUFFIXES)})")
             self._count = len(self.files)
@@ -82,6 +95,17 @@ class FrameSource:
     def __len__(self) -> int:
         return self._count
 
+    def _frame(self, i: int, name: str, image: np.ndarray) -> Frame:
+        """The frame, or an unreadable one when its size is not :attr:`size` (an error on frame 0)."""
+        h, w = image.shape[:2]
+        if self.size is None or (w, h) == self.size:
+            return Frame(i, i / self.fps, _grey(image))
+        msg = (f"{name}: frame {i} is {w}x{h} px but the camera's image size is {self.size[0]}x{self.size[1]} "
+               f"(width x height)")
+        if i == 0:
+            raise InputError(f"{msg}: give the camera file that belongs to this input")
+        return Frame(i, i / self.fps, None, msg)
+
     def __iter__(self) -> Iterator[Frame]:
         if self.files is not None:
             for i, f in enumerate(self.files):
@@ -89,7 +113,7 @@ class FrameSource:
                 if image is None or image.size == 0:
                     yield Frame(i, i / self.fps, None, f"{f.name}: cannot read image (missing or corrupt)")
                 else:
-                    yield Frame(i, i / self.fps, _grey(image))
+                    yield self._frame(i, str(f), image)
             return
         cap = cv2.VideoCapture(str(self.path))
         try:
@@ -98,15 +122,22 @@ class FrameSource:
                 ok, image = cap.read()
                 if not ok:
                     break
-                yield Frame(i, i / self.fps, _grey(image))
+                yield self._frame(i, f"{self.path} frame {i}", image)
                 i += 1
         finally:
             cap.release()
 
 
-def open_frames(paths, fps: float = 25.0) -> list[FrameSource]:
-    """One :class:`FrameSource` per camera; all must have the same number of frames."""
-    sources = [FrameSource(p, fps) for p in ([paths] if isinstance(paths, (str, Path)) else paths)]
+def open_frames(paths, fps: float = 25.0, sizes=None) -> list[FrameSource]:
+    """One :class:`FrameSource` per camera; all must have the same number of frames.
+
+    ``sizes``: one (width, height) per path that its frames must have (the cameras'), or None.
+    """
+    paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
+    sizes = [None] * len(paths) if sizes is None else list(sizes)
+    if len(sizes) != len(paths):
+        raise InputError(f"{len(paths)} input(s) but {len(sizes)} image size(s): give one per camera")
+    sources = [FrameSource(p, fps, size) for p, size in zip(paths, sizes)]
     if not sources:
         raise InputError("no input given: pass a video file or an image folder per camera")
     counts = {len(s) for s in sources}
