@@ -8,6 +8,7 @@ while tracing), so one compiled program serves every model of the same structure
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
@@ -17,8 +18,8 @@ from .camera import Camera
 from .model import Model
 
 __all__ = ["dh_transform", "dh_transforms", "quat_to_rotation", "base_pose", "frame_poses", "Pose", "View",
-           "pose", "forward", "project_pose", "views", "link_points", "validate_q", "random_q", "clip_q",
-           "normalize_q"]
+           "pose", "forward", "project_pose", "check_q_shape", "views", "link_points", "validate_q", "random_q",
+           "clip_q", "normalize_q"]
 
 
 def dh_transform(alpha, a, d, theta):
@@ -108,10 +109,38 @@ def pose(model: Model, q: Float[Array, " nq"]) -> Pose:
     return Pose(frames=T, link_start=start, link_end=end, tips=tips)
 
 
-@eqx.filter_jit
+def check_q_shape(model: Model, q, name: str = "q") -> None:
+    """Boundary check of a state given to a public entry point: shape ``(n_q,)`` always, finite
+    values whenever ``q`` holds numbers (under ``jax.jit`` it holds tracers and only the shape
+    is checked).
+
+    Raises:
+        InputError: naming the expected shape and the model, or the first non-finite entry.
+    """
+    shape = tuple(np.shape(q))
+    if shape != (model.n_q,):
+        raise InputError(f"{name}: expected shape ({model.n_q},) for {model.name!r} (q order: "
+                         f"{', '.join(model.q_names[:4])}{', ...' if model.n_q > 4 else ''}), got {shape}")
+    try:
+        values = np.asarray(q)
+    except jax.errors.TracerArrayConversionError:   # traced: values are checked where they enter
+        return
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        raise InputError(f"{name}: entry {model.q_names[bad[0]]!r} is {values[bad[0]]} (q must be finite)")
+
+
+_forward = eqx.filter_jit(pose)
+
+
 def forward(model: Model, q: Float[Array, " nq"]) -> Pose:
-    """Frame poses, link axes and tip centres in world coordinates (jitted)."""
-    return pose(model, q)
+    """Frame poses, link axes and tip centres in world coordinates (jitted; q is checked first).
+
+    Raises:
+        InputError: q is not of shape ``(n_q,)`` or not finite.
+    """
+    check_q_shape(model, q)
+    return _forward(model, q)
 
 
 def link_points(pose: Pose, fractions: Float[Array, " k"]) -> Float[Array, "links k 3"]:
@@ -148,9 +177,18 @@ def _view(model: Model, camera: Camera, pose: Pose) -> View:
 
 
 @eqx.filter_jit
-def project_pose(model: Model, camera: Camera, q: Float[Array, " nq"]) -> View:
-    """The model at state q seen by one camera (jitted)."""
+def _project_pose(model: Model, camera: Camera, q: Float[Array, " nq"]) -> View:
     return _view(model, camera, pose(model, q))
+
+
+def project_pose(model: Model, camera: Camera, q: Float[Array, " nq"]) -> View:
+    """The model at state q seen by one camera (jitted; q is checked first).
+
+    Raises:
+        InputError: q is not of shape ``(n_q,)`` or not finite.
+    """
+    check_q_shape(model, q)
+    return _project_pose(model, camera, q)
 
 
 def views(model: Model, cameras, q) -> tuple[View, ...]:

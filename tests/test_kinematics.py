@@ -1,3 +1,4 @@
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -128,3 +129,22 @@ def test_with_lengths_scales_geometry():
     m = jh.builtin_model("hand21")
     q = jnp.asarray(m.q_default)
     np.testing.assert_allclose(jh.forward(m.with_lengths(2.0), q).tips, 2 * jh.forward(m, q).tips, atol=1e-10)
+
+
+@pytest.mark.parametrize("entry", ["forward", "project_pose"])
+def test_public_kinematics_check_q_shape_and_finiteness(entry):
+    model = jh.builtin_model("two_fingers")
+    cam = jh.Orthographic.fit(np.asarray(jh.forward(model, model.q_default).frames[:, :3, 3]))
+    call = (lambda q: jh.forward(model, q)) if entry == "forward" else (lambda q: jh.project_pose(model, cam, q))
+    for n in (model.n_q - 1, model.n_q + 1):
+        with pytest.raises(jh.InputError, match=rf"q: expected shape \({model.n_q},\) for 'two_fingers'.*got \({n},\)"):
+            call(np.zeros(n))
+    q = np.asarray(model.q_default, float).copy()
+    q[1] = np.nan
+    with pytest.raises(jh.InputError, match=rf"entry '{model.q_names[1]}' is nan"):
+        call(q)
+    # Under jit only the shape is checked, and the traced call gives the eager numbers.
+    eager = call(model.q_default)
+    traced = jax.jit(call)(model.q_default)
+    first = (np.asarray(jax.tree_util.tree_leaves(v)[0]) for v in (eager, traced))
+    assert np.array_equal(*first)
