@@ -1,6 +1,6 @@
 """Errors raised by jaxhand at its boundaries (files, CLI arguments, user arrays)."""
 
-__all__ = ["JaxhandError", "ModelFileError", "InputError", "CameraError"]
+__all__ = ["JaxhandError", "ModelFileError", "InputError", "CameraError", "OutputExistsError"]
 
 
 class JaxhandError(Exception):
@@ -17,3 +17,7 @@ class CameraError(JaxhandError, ValueError):
 
 class InputError(JaxhandError, ValueError):
     """A user-supplied array, pose or argument has the wrong shape, dtype or value."""
+
+
+class OutputExistsError(InputError):
+    """An output folder already holds a run; the caller decides whether to overwrite or resume it."""

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._errors import InputError
+from ._errors import InputError, OutputExistsError
 
 __all__ = ["register"]
 
@@ -28,6 +28,8 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the noise texture and the pixel noise")
     p.add_argument("--maps", action="store_true", help="also save link-ID and depth maps (maps_NNNN.npz)")
     p.add_argument("--overwrite", action="store_true", help="replace the frames in a non-empty OUTDIR")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted run in OUTDIR (same preset and options) from its next frame")
     p.set_defaults(func=_synth)
 
 
@@ -52,7 +54,19 @@ def _synth(args) -> int:
     config = RenderConfig(mode="binary" if args.binary else "shaded", background=args.background,
                           noise_sigma=args.noise, blur_sigma_px=args.blur, antialias=args.antialias, seed=args.seed)
     seq = make_preset(args.preset, frames=args.frames, size=size)
-    path = write_sequence(seq, args.outdir, config, maps=args.maps, overwrite=args.overwrite)
+    if args.resume and args.overwrite:
+        raise InputError("--resume and --overwrite exclude each other: choose one")
+    try:
+        path = write_sequence(seq, args.outdir, config, maps=args.maps, overwrite=args.overwrite, resume=args.resume)
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt(f"the finished frames in {args.outdir} are kept: rerun with --resume to continue"
+                                ) from None
+    except OutputExistsError as err:
+        raise InputError(f"{err} (--resume continues an interrupted run, --overwrite replaces it)") from None
+    except InputError as err:
+        if "make room and resume" in str(err):
+            raise InputError(f"{err} (--resume)") from err
+        raise
     print(f"jaxhand synth: {seq.n_frames} frames x {len(seq.cameras)} camera(s) of {seq.name!r} "
           f"({size[0]}x{size[1]}, {config.mode}) -> {path.parent}")
     return 0

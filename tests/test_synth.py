@@ -219,7 +219,7 @@ def test_an_interrupted_run_keeps_its_frames(tmp_path, monkeypatch):
 def test_folder_errors(tmp_path):
     seq = make_preset("mouse3d", frames=2, size=SMALL)
     write_sequence(seq, tmp_path / "out")
-    with pytest.raises(jh.InputError, match="not empty"):
+    with pytest.raises(jh.InputError, match="not empty: choose another folder or overwrite"):
         write_sequence(seq, tmp_path / "out")
     write_sequence(make_preset("mouse3d", frames=2, size=SMALL), tmp_path / "out", overwrite=True)
     with pytest.raises(jh.InputError, match="not a folder"):
@@ -272,3 +272,38 @@ def test_cli_synth_bad_input(tmp_path, capsys, args, message):
 
     assert re.search(message, err)
     assert not (tmp_path / "o").exists()  # nothing written on bad input
+
+
+def test_cli_synth_interrupted_keeps_a_consistent_folder_and_resumes(tmp_path, capsys, monkeypatch):
+    import jaxhand.render._io as io_mod
+
+    out, ref = tmp_path / "cut", tmp_path / "ref"
+    argv = ["synth", "two_finger_occlusion", "--frames", "6", "--size", "48x36", "--binary"]
+    assert main([*argv[:2], str(ref), *argv[2:]]) == 0
+    real = io_mod.render_frame
+    calls = []
+
+    def render_then_stop(model, cam, q, config, frame_index=0):   # Ctrl-C while frame 3 is written
+        calls.append(frame_index)
+        res = real(model, cam, q, config, frame_index=frame_index)
+        if frame_index == 3:
+            io_mod._write_png(out / "frame_0003.png", res.image)   # its image is on disk already
+            raise KeyboardInterrupt
+        return res
+
+    monkeypatch.setattr(io_mod, "render_frame", render_then_stop)
+    assert main([*argv[:2], str(out), *argv[2:]]) == 130
+    assert "interrupted; the finished frames in" in capsys.readouterr().err
+    assert sorted(p.name for p in out.glob("frame_*.png")) == [f"frame_{i:04d}.png" for i in range(3)]
+    assert load_sequence(out).q.shape[0] == 3 and not load_sequence(out).complete
+    monkeypatch.setattr(io_mod, "render_frame", real)
+    assert main([*argv[:2], str(out), *argv[2:]]) == 2
+    assert "holds an interrupted run (3 of 6 frames)" in capsys.readouterr().err
+    assert main([*argv[:2], str(out), *argv[2:], "--frames", "7", "--resume"]) == 2
+    assert "cannot resume: the interrupted run had other settings (cameras, n_frames)" in capsys.readouterr().err
+    assert main([*argv[:2], str(out), *argv[2:], "--resume"]) == 0
+    assert (out / "ground_truth.json").read_text() == (ref / "ground_truth.json").read_text()
+    for i in range(6):
+        assert (out / f"frame_{i:04d}.png").read_bytes() == (ref / f"frame_{i:04d}.png").read_bytes()
+    assert main([*argv[:2], str(out), *argv[2:], "--resume"]) == 2
+    assert "nothing to resume (it is complete)" in capsys.readouterr().err

@@ -21,7 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .._errors import InputError, JaxhandError
+from .._errors import InputError, JaxhandError, OutputExistsError
 from ..camera import camera_from_dict, camera_to_dict, save_camera
 from ..kinematics import project_pose
 from ..model import Model, load_model, save_model
@@ -106,26 +106,57 @@ def _write_png(path: Path, image: np.ndarray) -> None:
         raise InputError(f"{path}: cannot write image")
 
 
-def _prepare(out: Path, n_cams: int, overwrite: bool) -> None:
+def _partial_records(out: Path) -> list[dict]:
+    """The records of an interrupted run's partial log (header first), or [] if there is none."""
+    partial = out / _PARTIAL
+    if (out / _GT).exists() or not partial.is_file():
+        return []
+    lines = []
+    for s in partial.read_text().splitlines():
+        try:
+            lines.append(json.loads(s))
+        except json.JSONDecodeError:   # the last line of a run killed while writing it
+            break
+    return lines
+
+
+def _prepare(out: Path, n_cams: int, overwrite: bool, resume: bool, header: dict) -> list[dict]:
+    """Make ``out`` ready and return the frame records an interrupted run left to resume from."""
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder")
+    if resume:
+        records = _partial_records(out)
+        if not records:
+            why = "it is complete" if (out / _GT).exists() else "it holds no interrupted run"
+            raise InputError(f"{out}: nothing to resume ({why})")
+        if records[0] != json.loads(json.dumps(header)):
+            diff = sorted(k for k in set(header) | set(records[0]) if records[0].get(k) != header.get(k))
+            raise OutputExistsError(f"{out}: cannot resume: the interrupted run had other settings "
+                                    f"({', '.join(diff)}); start again with the overwrite option")
+        return records[1:]
     if out.is_dir() and any(out.iterdir()):
         if not overwrite:
-            raise InputError(f"{out}: folder is not empty (pass overwrite=True / --overwrite to replace its frames)")
+            done = len(_partial_records(out)) - 1
+            what = (f"holds an interrupted run ({done} of {header['n_frames']} frames): resume it or overwrite it"
+                    if done >= 0 else "is not empty: choose another folder or overwrite its frames")
+            raise OutputExistsError(f"{out}: {what}")
         # Remove the frames and maps of an earlier run so that a shorter run leaves no stale ones.
-        for pattern in ("frame_*.png", "maps_*.npz", "cam*/frame_*.png", "cam*/maps_*.npz"):
+        for pattern in ("frame_*.png", "maps_*.npz", "cam*/frame_*.png", "cam*/maps_*.npz", _GT, _PARTIAL):
             for p in out.glob(pattern):
                 p.unlink()
     out.mkdir(parents=True, exist_ok=True)
     for c in range(n_cams if n_cams > 1 else 0):
         (out / f"cam{c}").mkdir(exist_ok=True)
+    return []
 
 
 def write_sequence(seq: Sequence, out, config: RenderConfig | None = None, *, maps: bool = False,
-                   overwrite: bool = False, progress: bool | None = None) -> Path:
+                   overwrite: bool = False, resume: bool = False, progress: bool | None = None) -> Path:
     """Render every frame of a sequence into a folder with its ground truth.
 
-    Frames, maps and ground-truth records are written as soon as each frame is rendered.
+    Frames, maps and ground-truth records are written as soon as each frame is rendered. An
+    interruption (Ctrl-C, SIGTERM, a full disk) leaves the folder consistent: every frame whose
+    record is in the partial log has its images, and no image lacks its record.
 
     Args:
         seq: the sequence (:func:`make_preset` or your own :class:`Sequence`).
@@ -134,55 +165,80 @@ def write_sequence(seq: Sequence, out, config: RenderConfig | None = None, *, ma
         maps: also save each view's link-ID (int16, -1 background) and depth (float32 mm, inf on
             background) maps as ``maps_NNNN.npz`` next to its frame.
         overwrite: allow a non-empty folder; frames and maps of an earlier run are deleted first.
+        resume: continue an interrupted run of the same sequence and settings from its next frame.
         progress: show a progress bar (default: when stderr is a terminal).
 
     Returns:
         The path of ``ground_truth.json``.
 
     Raises:
-        InputError: the folder is not usable or a file cannot be written.
+        InputError: the folder is not usable, a file cannot be written, or there is nothing to
+            resume; :class:`OutputExistsError` (an InputError) for a non-empty folder.
     """
     config = RenderConfig() if config is None else config
     out = Path(out)
     n_cams = len(seq.cameras)
-    _prepare(out, n_cams, overwrite)
     header = _header(seq, config)
-    save_model(seq.model, out / "model.json")
-    if n_cams == 1:
-        save_camera(seq.cameras[0], out / "camera.json")
-    else:
-        save_camera(seq.cameras, out / "cameras.json")
-        for c, cam in enumerate(seq.cameras):
-            save_camera(cam, out / f"cam{c}" / "camera.json")
-    (out / "README.md").write_text(_readme(seq, config, maps))
-    show = sys.stderr.isatty() if progress is None else progress
+    frames = _prepare(out, n_cams, overwrite, resume, header)
+    try:
+        if not frames:
+            save_model(seq.model, out / "model.json")
+            if n_cams == 1:
+                save_camera(seq.cameras[0], out / "camera.json")
+            else:
+                save_camera(seq.cameras, out / "cameras.json")
+                for c, cam in enumerate(seq.cameras):
+                    save_camera(cam, out / f"cam{c}" / "camera.json")
+            (out / "README.md").write_text(_readme(seq, config, maps))
+        _render_frames(seq, out, config, maps, frames, header, progress)
+        path = out / _GT
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(_dump_gt(header, frames))
+        tmp.replace(path)
+    except OSError as err:
+        raise InputError(f"{out}: cannot write ({err.strerror or err}); the {len(frames)} finished frames are kept: "
+                         "make room and resume") from err
+    (out / _PARTIAL).unlink()
+    return path
+
+
+def _render_frames(seq: Sequence, out: Path, config: RenderConfig, maps: bool, frames: list, header: dict,
+                   progress: bool | None) -> None:
+    """Render the frames after ``frames`` (the records already written), appending each record to
+    the partial log once its files exist; a frame cut short has its files removed."""
     from tqdm import tqdm
 
-    frames = []
-    partial = out / _PARTIAL
-    with partial.open("w") as log, tqdm(total=seq.n_frames, desc=f"synth {seq.name}", unit="frame",
-                                        disable=not show) as bar:
-        log.write(json.dumps(header) + "\n")
-        for i in range(seq.n_frames):
+    n_cams = len(seq.cameras)
+    show = sys.stderr.isatty() if progress is None else progress
+    done = len(frames)
+    with (out / _PARTIAL).open("w") as log, tqdm(
+            total=seq.n_frames, initial=done, desc=f"synth {seq.name}", unit="frame", disable=not show) as bar:
+        # Written whole again on resume, which drops a record cut off by the interruption.
+        log.write("".join(json.dumps(r) + "\n" for r in [header, *frames]))
+        log.flush()
+        for i in range(done, seq.n_frames):
             q = np.asarray(seq.q[i], float)
-            views = []
-            for c, cam in enumerate(seq.cameras):
-                res = render_frame(seq.model, cam, q, config, frame_index=i)
-                name = f"{_cam_dir(n_cams, c)}frame_{i:04d}.png"
-                _write_png(out / name, res.image)
-                if maps:
-                    np.savez_compressed(out / f"{_cam_dir(n_cams, c)}maps_{i:04d}.npz", link_id=res.link_id,
-                                        depth=res.depth.astype(np.float32))
-                views.append(_view_record(seq.model, cam, q, name, res))
-            rec = {"index": i, "time_s": float(seq.times_s[i]), "q": _q_to_json(seq.model, q), "views": views}
+            written: list[Path] = []
+            try:
+                views = []
+                for c, cam in enumerate(seq.cameras):
+                    name = f"{_cam_dir(n_cams, c)}frame_{i:04d}.png"
+                    written.append(out / name)
+                    res = render_frame(seq.model, cam, q, config, frame_index=i)
+                    _write_png(out / name, res.image)
+                    if maps:
+                        written.append(out / f"{_cam_dir(n_cams, c)}maps_{i:04d}.npz")
+                        np.savez_compressed(written[-1], link_id=res.link_id, depth=res.depth.astype(np.float32))
+                    views.append(_view_record(seq.model, cam, q, name, res))
+                rec = {"index": i, "time_s": float(seq.times_s[i]), "q": _q_to_json(seq.model, q), "views": views}
+                log.write(json.dumps(rec) + "\n")
+                log.flush()
+            except BaseException:
+                for p in written:   # this frame has no record: leave none of its files
+                    p.unlink(missing_ok=True)
+                raise
             frames.append(rec)
-            log.write(json.dumps(rec) + "\n")
-            log.flush()
             bar.update(1)
-    path = out / _GT
-    path.write_text(_dump_gt(header, frames))
-    partial.unlink()
-    return path
 
 
 def _dump_gt(header: dict, frames: list) -> str:
