@@ -9,7 +9,7 @@ import jax as _jax
 
 _jax.config.update("jax_enable_x64", True)
 
-from ._errors import CameraError, InputError, JaxhandError, ModelFileError  # noqa: E402
+from ._errors import CameraError, InputError, JaxhandError, JaxhandWarning, ModelFileError, OutputExistsError  # noqa: E402
 from .camera import Orthographic, Perspective, as_rig, load_camera, save_camera  # noqa: E402
 from .image import ImageConfig, ImageState, capture_templates, extract_features  # noqa: E402
 from .kinematics import Pose, View, forward, project_pose, random_q, validate_q, views  # noqa: E402
@@ -28,7 +28,7 @@ from .solve import SOLVERS, FitConfig, FitResult, Status, fit, fit_batch  # noqa
 __version__ = "0.1.0"
 
 __all__ = [
-    "JaxhandError", "ModelFileError", "InputError", "CameraError",
+    "JaxhandError", "ModelFileError", "InputError", "CameraError", "OutputExistsError", "JaxhandWarning",
     "Model", "builtin_model", "builtin_names", "get_model", "load_model", "save_model", "model_from_dict",
     "model_to_dict",
     "Orthographic", "Perspective", "as_rig", "load_camera", "save_camera",

@@ -1,6 +1,6 @@
 """Errors raised by jaxhand at its boundaries (files, CLI arguments, user arrays)."""
 
-__all__ = ["JaxhandError", "ModelFileError", "InputError", "CameraError", "OutputExistsError"]
+__all__ = ["JaxhandError", "ModelFileError", "InputError", "CameraError", "OutputExistsError", "JaxhandWarning"]
 
 
 class JaxhandError(Exception):
@@ -21,3 +21,7 @@ class InputError(JaxhandError, ValueError):
 
 class OutputExistsError(InputError):
     """An output folder already holds a run; the caller decides whether to overwrite or resume it."""
+
+
+class JaxhandWarning(UserWarning):
+    """Input that is accepted but probably not what was meant (the CLI prints it as one line)."""

@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
+import re
 import signal
 import sys
 import threading
+import warnings
 from pathlib import Path
 
-from ._errors import JaxhandError
+from ._errors import InputError, JaxhandError, JaxhandWarning
 
 __all__ = ["main"]
 
@@ -34,6 +37,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_NUMBERS = re.compile(r"^-[\d.]+(e-?\d+)?(,\s*-?[\d.]+(e-?\d+)?)*$")
+
+
+def _join_negative_values(argv: list[str]) -> list[str]:
+    """``--init -35,-40`` as ``--init=-35,-40``: argparse takes a value that starts with '-' and
+    is not a single number for an option, and then reports the flag's value as missing."""
+    out: list[str] = []
+    for a in argv:
+        if out and out[-1].startswith("--") and "=" not in out[-1] and _NUMBERS.match(a):
+            out[-1] = f"{out[-1]}={a}"
+        else:
+            out.append(a)
+    return out
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"jaxhand: warning: {message}", file=sys.stderr if file is None else file)
+
+
 def _sigterm_as_interrupt(signum, frame):
     raise KeyboardInterrupt("terminated")
 
@@ -45,11 +67,14 @@ def main(argv: list[str] | None = None) -> int:
     same clean way (the command's writers keep every finished frame).
     """
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_join_negative_values(list(sys.argv[1:] if argv is None else argv)))
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, _sigterm_as_interrupt) if main_thread else None
     try:
-        return int(args.func(args) or 0)
+        with warnings.catch_warnings():   # input that is taken but looks wrong: one line each
+            warnings.simplefilter("always", JaxhandWarning)
+            warnings.showwarning = _one_line_warning
+            return int(args.func(args) or 0)
     except JaxhandError as err:
         print(f"jaxhand {args.command}: error: {err}", file=sys.stderr)
         return 2
@@ -62,10 +87,23 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
-def out_dir(path: str | Path) -> Path:
-    """Create (if needed) and return an output folder."""
+def out_dir(path: str | Path, flag: str = "--out") -> Path:
+    """Create (if needed) and return an output folder, or say in one line why it cannot be one.
+
+    Raises:
+        InputError: the path is a file, lies under a file, or cannot be created or written.
+    """
     p = Path(path)
-    p.mkdir(parents=True, exist_ok=True)
+    if p.exists() and not p.is_dir():
+        raise InputError(f"{flag} {p}: exists and is a file; give a folder")
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise InputError(f"{flag} {p}: lies under a file; give a folder path") from None
+    except OSError as err:
+        raise InputError(f"{flag} {p}: cannot create the folder ({err.strerror})") from None
+    if not os.access(p, os.W_OK | os.X_OK):
+        raise InputError(f"{flag} {p}: the folder is not writable")
     return p
 
 

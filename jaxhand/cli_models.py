@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._errors import InputError
 from .model import builtin_model, builtin_names, get_model, save_model
 from .model.builtin import BUILTIN_DESCRIPTIONS
 
@@ -37,7 +38,10 @@ def _models(args) -> int:
         conv, unit = (np.degrees, "deg") if m.is_angle[i] else (float, "mm" if m.q_kinds[i] == "length" else "")
         print(f"  {n:16s} [{conv(lo[i]):8.2f}, {conv(hi[i]):8.2f}] default {conv(q0[i]):8.2f} {unit}")
     if args.export:
-        print(f"wrote {save_model(m, args.export)}")
+        try:
+            print(f"wrote {save_model(m, args.export)}")
+        except OSError as err:
+            raise InputError(f"--export {args.export}: cannot write ({err.strerror}); give a writable path") from None
     return 0
 
 
@@ -65,6 +69,8 @@ def sketch_poses(model_name: str, out, n_random: int = 3, seed: int = 0) -> list
 
 
 def _sketch(args) -> int:
+    if args.poses < 0:
+        raise InputError(f"--poses: expected a count >= 0, got {args.poses}")
     for p in sketch_poses(args.model, args.out, args.poses):
         print(p)
     return 0

@@ -3,25 +3,31 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from .._errors import InputError
+from .._errors import InputError, JaxhandWarning
 from ..kinematics import validate_q
 from ..model import Model
 
 __all__ = ["parse_pose", "pose_to_dict"]
 
 
-def _from_user(model: Model, values) -> np.ndarray:
+def _from_user(model: Model, values, src: str = "pose") -> np.ndarray:
     try:
         v = np.asarray(values, float)
     except (TypeError, ValueError) as err:
-        raise InputError(f"pose: cannot read {values!r} as numbers") from err
+        raise InputError(f"{src}: cannot read {values!r} as numbers") from err
     if v.shape != (model.n_q,):
-        raise InputError(f"pose: expected shape ({model.n_q},) for {model.name!r} ({', '.join(model.q_names)}), "
-                         f"got {v.shape}")
+        raise InputError(f"{src}: expected {model.n_q} values for {model.name!r} ({', '.join(model.q_names)}), "
+                         f"got {v.size}")
+    angles = v[model.is_angle]
+    if angles.size >= 2 and np.abs(angles).max() > 0.05 and np.all(np.abs(angles) <= np.pi + 1e-6) \
+            and not np.allclose(angles, np.round(angles)):
+        warnings.warn(f"{src}: every angle lies within +-pi and few are whole degrees: these look like radians, "
+                      f"but poses are read in degrees (0.6 rad is 34.4 deg)", JaxhandWarning, stacklevel=3)
     return np.where(model.is_angle, np.radians(v), v)
 
 
@@ -40,7 +46,7 @@ def _overrides(model: Model, items: dict, src: str) -> np.ndarray:
             q[name] = float(value)
         except (TypeError, ValueError):
             raise InputError(f"{src}: joint {name!r}: {value!r} is not a number") from None
-    return _from_user(model, [q[n] for n in model.q_names])
+    return _from_user(model, [q[n] for n in model.q_names], src)
 
 
 def parse_pose(model: Model, spec: str | None) -> np.ndarray:
@@ -66,7 +72,7 @@ def parse_pose(model: Model, spec: str | None) -> np.ndarray:
             data = data["frames"][0]
         if isinstance(data, dict):
             data = data.get("q", data)
-        q = _overrides(model, data, str(path)) if isinstance(data, dict) else _from_user(model, data)
+        q = _overrides(model, data, str(path)) if isinstance(data, dict) else _from_user(model, data, str(path))
         src = str(path)
     elif "=" in spec:
         items = {}
@@ -80,7 +86,7 @@ def parse_pose(model: Model, spec: str | None) -> np.ndarray:
         except ValueError:
             raise InputError(f"--init: {spec!r} is neither 'default', name=value pairs, numbers nor a .json file"
                              ) from None
-        q, src = _from_user(model, values), "--init"
+        q, src = _from_user(model, values, "--init"), "--init"
     if model.base_kind == "free":
         n = np.linalg.norm(q[:4])
         if n < 1e-9:
