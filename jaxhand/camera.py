@@ -202,7 +202,7 @@ def _camera_from_dict(d: dict, src: str) -> Camera:
     kind = d.get("kind")
     allowed = {"orthographic": {"kind", "R", "t", "scale", "center", "size"},
                "perspective": {"kind", "K", "R", "t", "size"}}
-    if kind not in allowed:
+    if not isinstance(kind, str) or kind not in allowed:
         raise CameraError(f"{src}: field 'kind' must be 'orthographic' or 'perspective', got {kind!r}")
     unknown = set(d) - allowed[kind]
     if unknown:
