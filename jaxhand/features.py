@@ -91,7 +91,7 @@ def features_from_pose(model: Model, cameras, q, *, noise_px: float = 0.0,
     return tuple(out)
 
 
-def validate_features(model: Model, cameras: tuple[Camera, ...], features) -> tuple[Features, ...]:
+def validate_features(model: Model, cameras: Camera | tuple[Camera, ...], features) -> tuple[Features, ...]:
     """Check a user's features against the model and rig: one per camera, right shapes, finite
     where valid, unit line normals. Returns them as a tuple.
 

@@ -11,7 +11,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from ._errors import InputError
 from .camera import Camera
@@ -34,7 +34,7 @@ def dh_transform(alpha, a, d, theta):
     ], -2)
 
 
-def dh_transforms(model: Model, q: Float[Array, " nq"]) -> Float[Array, "frames 4 4"]:
+def dh_transforms(model: Model, q: Float[ArrayLike, " nq"]) -> Float[Array, "frames 4 4"]:
     """T_parent_frame of every frame at state q, in one batched call."""
     idx = np.array(model.q_index)
     qf = jnp.where(idx >= 0, q[np.maximum(idx, 0)], 0.0)  # joint value per frame (0 for fixed)
@@ -58,7 +58,7 @@ def quat_to_rotation(quat: Float[Array, 4]) -> Float[Array, "3 3"]:
     ])
 
 
-def base_pose(model: Model, q: Float[Array, " nq"]) -> Float[Array, "4 4"]:
+def base_pose(model: Model, q: Float[ArrayLike, " nq"]) -> Float[Array, "4 4"]:
     """T_world_root = T_world_mount @ base motion (identity, free palm or planar palm)."""
     if model.base_kind == "fixed":
         return model.T_world_mount
@@ -71,7 +71,7 @@ def base_pose(model: Model, q: Float[Array, " nq"]) -> Float[Array, "4 4"]:
     return model.T_world_mount @ T
 
 
-def frame_poses(model: Model, q: Float[Array, " nq"]) -> Float[Array, "frames 4 4"]:
+def frame_poses(model: Model, q: Float[ArrayLike, " nq"]) -> Float[Array, "frames 4 4"]:
     """T_world_frame for every frame, composed one depth level at a time."""
     T_parent_frame = dh_transforms(model, q)
     T_root = base_pose(model, q)
@@ -97,7 +97,7 @@ class Pose(eqx.Module):
     tips: Float[Array, "*b tips 3"]
 
 
-def pose(model: Model, q: Float[Array, " nq"]) -> Pose:
+def pose(model: Model, q: Float[ArrayLike, " nq"]) -> Pose:
     """Frame poses, link axes and tip centres in world coordinates (unjitted, for traced use;
     :func:`forward` is its jitted form)."""
     T = frame_poses(model, q)
@@ -133,7 +133,7 @@ def check_q_shape(model: Model, q, name: str = "q") -> None:
 _forward = eqx.filter_jit(pose)
 
 
-def forward(model: Model, q: Float[Array, " nq"]) -> Pose:
+def forward(model: Model, q: Float[ArrayLike, " nq"]) -> Pose:
     """Frame poses, link axes and tip centres in world coordinates (jitted; q is checked first).
 
     Raises:
@@ -177,11 +177,11 @@ def _view(model: Model, camera: Camera, pose: Pose) -> View:
 
 
 @eqx.filter_jit
-def _project_pose(model: Model, camera: Camera, q: Float[Array, " nq"]) -> View:
+def _project_pose(model: Model, camera: Camera, q: Float[ArrayLike, " nq"]) -> View:
     return _view(model, camera, pose(model, q))
 
 
-def project_pose(model: Model, camera: Camera, q: Float[Array, " nq"]) -> View:
+def project_pose(model: Model, camera: Camera, q: Float[ArrayLike, " nq"]) -> View:
     """The model at state q seen by one camera (jitted; q is checked first).
 
     Raises:

@@ -33,7 +33,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from ._errors import InputError
 from .camera import as_rig
@@ -111,21 +111,21 @@ def _stack_residuals(feats: Features, tips_px, pts_px) -> Float[Array, " r"]:
     return jnp.concatenate([r_tip.reshape(-1), r_link.reshape(-1)])
 
 
-def residuals(q: Float[Array, " nq"], args: ResidualArgs) -> Float[Array, " r"]:
+def residuals(q: Float[ArrayLike, " nq"], args: ResidualArgs) -> Float[Array, " r"]:
     """The stacked residual vector at state q (optimistix signature ``fn(y, args)``), pixels."""
     pose = pose_at(args.model, q)
     return jnp.concatenate([_camera_residuals(args.model, cam, f, pose, args.fractions)
                             for cam, f in zip(args.cameras, args.features)])
 
 
-def cost(q: Float[Array, " nq"], args: ResidualArgs) -> Float[Array, ""]:
+def cost(q: Float[ArrayLike, " nq"], args: ResidualArgs) -> Float[Array, ""]:
     """H(q) = 1/2 ||r(q)||^2 (thesis eq. 3.3), px^2."""
     r = residuals(q, args)
     return 0.5 * jnp.sum(r * r)
 
 
 @eqx.filter_jit
-def residual_jacobian(q: Float[Array, " nq"], args: ResidualArgs) -> Float[Array, "r nq"]:
+def residual_jacobian(q: Float[ArrayLike, " nq"], args: ResidualArgs) -> Float[Array, "r nq"]:
     """dr/dq by forward-mode autodiff (thesis eqs. 3.6-3.8), px per q unit (jitted)."""
     return jax.jacfwd(residuals)(q, args)
 
@@ -143,7 +143,7 @@ def _quat_rate(quat: Float[Array, 4]) -> Float[Array, "3 4"]:
     return jnp.where(n > 0, 2.0 * E / safe, 0.0)
 
 
-def point_jacobian(model: Model, q: Float[Array, " nq"], frames: Float[Array, "frames 4 4"],
+def point_jacobian(model: Model, q: Float[ArrayLike, " nq"], frames: Float[Array, "frames 4 4"],
                    points: Float[Array, "p 3"], attached: np.ndarray) -> Float[Array, "p 3 nq"]:
     """d p_world / d q of world points rigidly attached to frames, from the joint axes
     (the geometric Jacobian, DigitEyes eqs. 8-10), mm per q unit.
@@ -198,7 +198,7 @@ def _project_with_jacobian(camera, points: Float[Array, "p 3"]) -> tuple[Float[A
     return px, J
 
 
-def residuals_and_jacobian(q: Float[Array, " nq"], args: ResidualArgs) -> tuple[Float[Array, " r"],
+def residuals_and_jacobian(q: Float[ArrayLike, " nq"], args: ResidualArgs) -> tuple[Float[Array, " r"],
                                                                                  Float[Array, "r nq"]]:
     """:func:`residuals` and their Jacobian dr/dq from the geometric Jacobian of the residual
     points (:func:`point_jacobian`) chained with each camera's pixel Jacobian.

@@ -23,5 +23,5 @@ def width_update(p_pred: Float[Array, " links"], measures: Float[Array, "links n
     """One appendix-E update of each link's width from its profiles' width measures."""
     count = jnp.sum(valid, axis=-1)
     total = jnp.sum(jnp.where(valid, measures, 0.0), axis=-1)
-    mean = total / jnp.where(count > 0, count, 1)  # guard: no valid measure -> keep the prediction
+    mean = total / jnp.where(count > 0, count, 1).astype(total.dtype)  # guard: no valid measure -> keep the prediction
     return jnp.where(count > 0, (1.0 - g) * p_pred + g * mean, p_pred)
