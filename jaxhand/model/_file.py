@@ -486,14 +486,23 @@ def _to_toml(d: dict[str, Any]) -> str:
 
 
 def load_model(path: str | Path) -> Model:
-    """Load a model from a ``.toml`` or ``.json`` file.
+    """Load a model from a ``.toml`` or ``.json`` model file, or import an MJCF ``.xml`` or a
+    ``.urdf`` with the defaults of :func:`load_mjcf` / :func:`load_urdf`.
 
     Raises:
         ModelFileError: unreadable, unparsable or invalid file; the message names the file.
     """
     path = Path(path)
+    if path.suffix == ".xml":
+        from ._mjcf import load_mjcf
+
+        return load_mjcf(path)
+    if path.suffix == ".urdf":
+        from ._urdf import load_urdf
+
+        return load_urdf(path)
     if path.suffix not in (".json", ".toml"):
-        raise ModelFileError(f"{path}: unknown model file type {path.suffix!r} (use .toml or .json)")
+        raise ModelFileError(f"{path}: unknown model file type {path.suffix!r} (use .toml, .json, MJCF .xml or .urdf)")
     try:
         text = path.read_text()
     except OSError as err:
