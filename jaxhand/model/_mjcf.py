@@ -176,7 +176,7 @@ def load_mjcf(path: str | Path, *, name: str | None = None, handedness: str = "n
     counter = {"body": 0}
     for top in tops:
         _body(ctx, builder, top, "base", np.eye(4), "main", occ, counter, top_level=len(tops) == 1)
-    _mark_tips(builder)
+    builder.mark_tips()
     return builder.model(src)
 
 
@@ -269,18 +269,3 @@ def _matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
         v[c] = (R[c, a] + R[a, c]) / s
         q = [(R[c, b] - R[b, c]) / s] + v
     return np.asarray(q) / np.linalg.norm(q)
-
-
-def _mark_tips(b: TreeBuilder) -> None:
-    """A link is a tip when no frame below it carries a link."""
-    parent = {fr["name"]: fr["parent"] for fr in b.frames}
-    with_link = [fr["name"] for fr in b.frames if "link" in fr]
-    above: set[str] = set()
-    for n in with_link:
-        p = parent[n]
-        while p != "base":
-            above.add(p)
-            p = parent[p]
-    for fr in b.frames:
-        if "link" in fr:
-            fr["link"]["tip"] = fr["name"] not in above

@@ -68,6 +68,8 @@ class TreeBuilder:
     base: dict[str, Any] = field(default_factory=lambda: {"kind": "fixed"})
     frames: list[dict[str, Any]] = field(default_factory=list)
     occluders: list[dict[str, Any]] = field(default_factory=list)
+    #: Frames made only to carry a pill (``<pill>_pill``), mapped to the body frame they hang off.
+    pill_frames: dict[str, str] = field(default_factory=dict)
 
     def _frame(self, name: str, parent: str, pre: np.ndarray | None, **kw) -> str:
         fr: dict[str, Any] = {"name": name, "parent": parent, "alpha_deg": 0, "a_mm": 0, "d_mm": 0, "theta_deg": 0,
@@ -126,10 +128,26 @@ class TreeBuilder:
                 R = _axis_frame_x(d)
                 on = {"name": f"{p.name}_pill"}
                 self._frame(on["name"], frame, _trans(s) @ _rot(R))
+                self.pill_frames[on["name"]] = frame
                 on = self.frames[-1]
                 axis = 0
             on["link"] = {"name": p.name, "axis": "xyz"[axis], "length_mm": _clean(length),
                           "radius_mm": _clean(p.radius), "tip": p.tip}
+
+    def mark_tips(self) -> None:
+        """A link is a tip when no body below its own carries a link."""
+        parent = {fr["name"]: fr["parent"] for fr in self.frames}
+        body = lambda n: self.pill_frames.get(n, n)  # noqa: E731
+        above: set[str] = set()
+        for fr in self.frames:
+            if "link" in fr:
+                p = parent[body(fr["name"])]
+                while p != "base":
+                    above.add(p)
+                    p = parent[p]
+        for fr in self.frames:
+            if "link" in fr:
+                fr["link"]["tip"] = body(fr["name"]) not in above
 
     def model(self, source: str) -> Model:
         spec: dict[str, Any] = {"format_version": FORMAT_VERSION, "name": self.name, "handedness": self.handedness,
