@@ -225,50 +225,15 @@ def test_mjcf_errors_name_file_and_element(tmp_path, xml, match):
 
 # ---- URDF ----
 
-_URDF = """<?xml version="1.0"?>
-<robot name="arm">
-  <link name="base_link">
-    <collision><origin xyz="0 0 0.01"/><geometry><cylinder radius="0.02" length="0.02"/></geometry></collision>
-  </link>
-  <joint name="shoulder" type="revolute">
-    <parent link="base_link"/><child link="upper"/>
-    <origin xyz="0 0 0.02"/><axis xyz="0 0 1"/><limit lower="-1.5" upper="1.5" effort="1" velocity="1"/>
-  </joint>
-  <link name="upper">
-    <collision><origin xyz="0.05 0 0" rpy="0 1.5707963267948966 0"/>
-      <geometry><capsule radius="0.01" length="0.1"/></geometry></collision>
-  </link>
-  <joint name="elbow" type="continuous">
-    <parent link="upper"/><child link="fore"/><origin xyz="0.1 0 0"/><axis xyz="0 0 1"/>
-  </joint>
-  <link name="fore">
-    <collision><origin xyz="0.04 0 0" rpy="0 1.5707963267948966 0"/>
-      <geometry><cylinder radius="0.008" length="0.08"/></geometry></collision>
-  </link>
-  <joint name="slide" type="prismatic">
-    <parent link="fore"/><child link="tool"/><origin xyz="0.08 0 0" rpy="0.3 -0.2 0.5"/><axis xyz="0 1 1"/>
-    <limit lower="-0.01" upper="0.02"/>
-  </joint>
-  <link name="tool">
-    <collision><geometry><sphere radius="0.005"/></geometry></collision>
-    <collision><origin xyz="0 0.01 0.01" rpy="0.1 0.2 0.3"/>
-      <geometry><cylinder radius="0.004" length="0.02"/></geometry></collision>
-  </link>
-  <joint name="mount" type="fixed">
-    <parent link="base_link"/><child link="camera_link"/><origin xyz="0 0.05 0"/>
-  </joint>
-  <link name="camera_link"><visual><geometry><sphere radius="0.01"/></geometry></visual></link>
-</robot>
-"""
+ARM_URDF = Path(__file__).with_name("data") / "arm.urdf"  # a planar RR arm, a prismatic tool, a fixed camera
 
 
 def _rpy(r, p, y):
     return _axis_angle([0, 0, 1], y) @ _axis_angle([0, 1, 0], p) @ _axis_angle([1, 0, 0], r)
 
 
-def test_urdf_closed_form_and_reference(tmp_path):
-    path = tmp_path / "arm.urdf"
-    path.write_text(_URDF)
+def test_urdf_closed_form_and_reference():
+    path = ARM_URDF
     m = load_urdf(path)
     assert m.q_names == ("shoulder", "elbow", "slide") and m.q_kinds == ("angle", "angle", "length")
     assert m.link_names == ("upper", "fore", "tool_1") and m.tip_names == ("tool_1",)
