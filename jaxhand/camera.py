@@ -234,7 +234,7 @@ def camera_to_dict(camera: Camera) -> dict:
             "t": np.asarray(camera.t).tolist(), "size": list(camera.size)}
 
 
-def camera_from_dict(d: dict, source: str = "<dict>") -> Camera:
+def camera_from_dict(d: object, source: str = "<dict>") -> Camera:
     if not isinstance(d, dict):
         raise CameraError(f"{source}: expected an object")
     return _camera_from_dict(d, source)

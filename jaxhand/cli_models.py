@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._errors import InputError
-from .model import builtin_model, builtin_names, get_model, save_model
+from .model import builtin_model, builtin_names, get_model, mirror_model, save_model
 from .model.builtin import BUILTIN_DESCRIPTIONS
 
 __all__ = ["register", "sketch_poses"]
@@ -15,6 +15,8 @@ def register(sub) -> None:
     p = sub.add_parser("models", help="list the built-in models with their DOF and joint names")
     p.add_argument("name", nargs="?", help="show one model in full")
     p.add_argument("--export", metavar="FILE", help="write the model to FILE (.toml or .json)")
+    p.add_argument("--mirror", action="store_true",
+                   help="use the model's mirror image (a left hand from a right one and back)")
     p.set_defaults(func=_models)
     s = sub.add_parser("sketch", help="draw a model at its default and a few random poses to PNG")
     s.add_argument("--model", default="hand21", help="built-in name or model file")
@@ -27,13 +29,18 @@ def _models(args) -> int:
     if args.name is None:
         for name in builtin_names():
             m = builtin_model(name)
+            hand = f", {m.handedness} hand" if m.handedness != "none" else ""
             print(f"{name:12s} {m.dof:3d} DOF ({m.n_q} q entries, {m.base_kind} base, {m.n_links} links, "
-                  f"{m.n_tips} tips)  {BUILTIN_DESCRIPTIONS[name]}")
+                  f"{m.n_tips} tips{hand})  {BUILTIN_DESCRIPTIONS[name]}")
             print(f"{'':12s} joints: {', '.join(m.q_names)}")
         return 0
     m = get_model(args.name)
+    if args.mirror:
+        m = mirror_model(m)
     lo, hi, q0 = (np.asarray(a) for a in (m.q_lower, m.q_upper, m.q_default))
-    print(f"{m.name}: {m.dof} DOF, {m.n_q} q entries, {m.base_kind} base")
+    hand = f", {m.handedness} hand" if m.handedness != "none" else ""
+    occ = f", {m.n_occluders} occluders ({', '.join(m.occluder_names)})" if m.n_occluders else ""
+    print(f"{m.name}: {m.dof} DOF, {m.n_q} q entries, {m.base_kind} base, {m.n_links} links{occ}{hand}")
     for i, n in enumerate(m.q_names):
         conv, unit = (np.degrees, "deg") if m.is_angle[i] else (float, "mm" if m.q_kinds[i] == "length" else "")
         print(f"  {n:16s} [{conv(lo[i]):8.2f}, {conv(hi[i]):8.2f}] default {conv(q0[i]):8.2f} {unit}")

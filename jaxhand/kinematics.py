@@ -19,7 +19,7 @@ from .model import Model
 
 __all__ = ["dh_transform", "dh_transforms", "quat_to_rotation", "base_pose", "frame_poses", "Pose", "View",
            "pose", "forward", "project_pose", "check_q_shape", "views", "link_points", "validate_q", "random_q",
-           "clip_q", "normalize_q"]
+           "clip_q", "normalize_q", "Pills", "occluder_pills", "all_pills"]
 
 
 def dh_transform(alpha, a, d, theta):
@@ -35,7 +35,11 @@ def dh_transform(alpha, a, d, theta):
 
 
 def dh_transforms(model: Model, q: Float[ArrayLike, " nq"]) -> Float[Array, "frames 4 4"]:
-    """T_parent_frame of every frame at state q, in one batched call."""
+    """T_parent_frame of every frame at state q, in one batched call.
+
+    Frames in ``model.pre_transform_frames`` get their fixed transform first:
+    ``T_parent_frame = T_pre_transform @ DH``. Models without any keep the plain DH program.
+    """
     idx = np.array(model.q_index)
     qf = jnp.where(idx >= 0, q[np.maximum(idx, 0)], 0.0)  # joint value per frame (0 for fixed)
     revolute = np.array([k == "revolute" for k in model.joint_kinds])
@@ -43,7 +47,11 @@ def dh_transforms(model: Model, q: Float[ArrayLike, " nq"]) -> Float[Array, "fra
     dh = model.dh
     theta = dh[:, 3] + jnp.where(revolute, qf, 0.0)
     d = dh[:, 2] + jnp.where(prismatic, qf, 0.0)
-    return dh_transform(dh[:, 0], dh[:, 1], d, theta)
+    T = dh_transform(dh[:, 0], dh[:, 1], d, theta)
+    if model.pre_transform_frames:  # static: absent from the program of a plain DH model
+        idx = np.array(model.pre_transform_frames)
+        T = T.at[idx].set(model.T_pre_transform.astype(T.dtype) @ T[idx])
+    return T
 
 
 def quat_to_rotation(quat: Float[Array, 4]) -> Float[Array, "3 3"]:
@@ -141,6 +149,37 @@ def forward(model: Model, q: Float[ArrayLike, " nq"]) -> Pose:
     """
     check_q_shape(model, q)
     return _forward(model, q)
+
+
+class Pills(eqx.Module):
+    """Pills in world coordinates (mm): segment ends and radii."""
+
+    start: Float[Array, "*b pills 3"]
+    end: Float[Array, "*b pills 3"]
+    radius_mm: Float[Array, "*b pills"]
+
+
+def occluder_pills(model: Model, pose: Pose) -> Pills:
+    """World ends and radii of the model's occluder-only pills (palm, forearm) at ``pose``.
+
+    They carry no link or tip features; the image front end uses them for visibility, search
+    windows and the silhouette. Empty (zero pills) for a model without occluders.
+    """
+    T = pose.frames[..., np.array(model.occluder_frame, dtype=int), :, :]
+    R, t = T[..., :3, :3], T[..., :3, 3]
+    start = jnp.einsum("...ij,...j->...i", R, model.occluder_start_mm.astype(T.dtype)) + t
+    end = jnp.einsum("...ij,...j->...i", R, model.occluder_end_mm.astype(T.dtype)) + t
+    radius = jnp.broadcast_to(model.occluder_radius_mm.astype(T.dtype), start.shape[:-1])
+    return Pills(start=start, end=end, radius_mm=radius)
+
+
+def all_pills(model: Model, pose: Pose) -> Pills:
+    """Every pill of the model at ``pose``: the links first (in link order), then the occluders."""
+    occ = occluder_pills(model, pose)
+    radius = jnp.broadcast_to(model.link_radius_mm.astype(pose.link_start.dtype), pose.link_start.shape[:-1])
+    return Pills(start=jnp.concatenate([pose.link_start, occ.start], -2),
+                 end=jnp.concatenate([pose.link_end, occ.end], -2),
+                 radius_mm=jnp.concatenate([radius, occ.radius_mm], -1))
 
 
 def link_points(pose: Pose, fractions: Float[Array, " k"]) -> Float[Array, "links k 3"]:

@@ -25,6 +25,30 @@ Format (version 1); lengths in mm, angles in degrees::
     default = 10.0                           # deg or mm, inside limits
     link = { axis = "x", length_mm = 40.0, radius_mm = 9.0, tip = false }   # optional pill
 
+Version 2 adds (version 1 files load unchanged)::
+
+    handedness = "right"                     # right | left | none (default)
+
+    [[frames]]
+    ...
+    link = { name = "index_proximal", axis = "x", ... }      # a link name (default: the frame's)
+    # A fixed transform before the DH transform: T_parent_frame = T_pre @ DH. The rotation is a
+    # 3x3 matrix (rows) or a unit quaternion (w, x, y, z); both default to the identity.
+    pre_transform = { rotation = [[1, 0, 0], [0, 1, 0], [0, 0, 1]], translation_mm = [0, 0, 0] }
+    # pre_transform = { quaternion = [1, 0, 0, 0], translation_mm = [22, 15, 6] }
+
+    [[occluders]]                            # occluder-only pills: no link or tip features
+    name = "palm_middle"
+    frame = "palm"                           # the frame it is attached to
+    start_mm = [5.5, 12, 0]                  # segment ends in that frame's coordinates
+    end_mm = [9.35, 91, 0]
+    radius_mm = 12.19
+
+Numbers are written so that loading a saved model gives back the same floats: a length or
+matrix entry as is (shortened to 9 decimals only where that is exact), an angle as the degree
+value that converts back to the same radians (one exists for all but about one angle in ten; the
+others come back within one unit in the last place).
+
 Every validation error names the source, the frame and the field.
 """
 
@@ -40,14 +64,20 @@ from typing import Any
 import numpy as np
 
 from .._errors import ModelFileError
-from ._model import AXES, BASE_KINDS, BASE_Q_NAMES, JOINT_KINDS, Model
+from ._model import AXES, BASE_KINDS, BASE_Q_NAMES, HANDEDNESS, JOINT_KINDS, Model
 
 __all__ = ["model_from_dict", "model_to_dict", "load_model", "save_model", "FORMAT_VERSION"]
 
-FORMAT_VERSION = 1
-_TOP_KEYS = {"format_version", "name", "description", "base", "frames"}
-_FRAME_KEYS = {"name", "parent", "alpha_deg", "a_mm", "d_mm", "theta_deg", "joint", "limits", "default", "link"}
-_LINK_KEYS = {"axis", "length_mm", "radius_mm", "tip"}
+FORMAT_VERSION = 2
+_VERSIONS = (1, 2)
+_TOP_KEYS = {"format_version", "name", "description", "base", "frames", "handedness", "occluders"}
+_FRAME_KEYS = {"name", "parent", "alpha_deg", "a_mm", "d_mm", "theta_deg", "joint", "limits", "default", "link",
+               "pre_transform"}
+_LINK_KEYS = {"name", "axis", "length_mm", "radius_mm", "tip"}
+_PRE_KEYS = {"rotation", "quaternion", "translation_mm"}
+_OCCLUDER_KEYS = {"name", "frame", "start_mm", "end_mm", "radius_mm"}
+#: Keys that need format version 2, by place.
+_V2_KEYS = {"top level": {"handedness", "occluders"}, "frame": {"pre_transform"}, "link": {"name"}}
 _BASE_KEYS = {
     "fixed": {"kind", "rotation", "translation_mm"},
     "free": {"kind", "rotation", "translation_mm", "default_quaternion", "default_translation_mm",
@@ -97,13 +127,53 @@ def _vector(src: str, where: str, d: dict, key: str, default: list[float]) -> np
     return v
 
 
-def _rotation(src: str, base: dict) -> np.ndarray:
-    R = np.asarray(base.get("rotation", np.eye(3).tolist()), dtype=float)
+def _rotation(src: str, base: dict, where: str = "base") -> np.ndarray:
+    try:
+        R = np.asarray(base.get("rotation", np.eye(3).tolist()), dtype=float)
+    except (TypeError, ValueError):
+        R = np.zeros(0)
     if R.shape != (3, 3) or not np.all(np.isfinite(R)):
-        raise _fail(src, "base", f"field 'rotation' must be a 3x3 matrix, got {base.get('rotation')!r}")
+        raise _fail(src, where, f"field 'rotation' must be a 3x3 matrix, got {base.get('rotation')!r}")
     if not np.allclose(R @ R.T, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0:
-        raise _fail(src, "base", "field 'rotation' is not a proper rotation matrix (R R^T = I, det R = +1)")
+        raise _fail(src, where, "field 'rotation' is not a proper rotation matrix (R R^T = I, det R = +1)")
     return R
+
+
+def quaternion_to_matrix(quat) -> np.ndarray:
+    """Rotation matrix of a unit quaternion (w, x, y, z), NumPy (MJCF's convention)."""
+    w, x, y, z = (float(v) for v in quat)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def _pre_transform(src: str, where: str, pre: Any) -> np.ndarray:
+    pw = f"{where} pre_transform"
+    if not isinstance(pre, dict):
+        raise _fail(src, pw, "expected a table/object")
+    _check_keys(src, pw, pre, _PRE_KEYS)
+    if "rotation" in pre and "quaternion" in pre:
+        raise _fail(src, pw, "give either 'rotation' or 'quaternion', not both")
+    T = np.eye(4)
+    if "quaternion" in pre:
+        quat = _vector(src, pw, pre, "quaternion", [1.0, 0.0, 0.0, 0.0])
+        n = np.linalg.norm(quat)
+        if abs(n - 1.0) > 1e-3:  # allows written-out values such as 0.7071068; normalised below
+            raise _fail(src, pw, f"field 'quaternion' must have unit length (w, x, y, z), got norm {n:.9g}")
+        T[:3, :3] = quaternion_to_matrix(quat / n)
+    else:
+        T[:3, :3] = _rotation(src, pre, pw)
+    T[:3, 3] = _vector(src, pw, pre, "translation_mm", [0.0, 0.0, 0.0])
+    return T
+
+
+def _check_version(src: str, version: int, where: str, place: str, d: dict) -> None:
+    if version < 2:
+        for key in _V2_KEYS[place]:
+            if key in d:
+                raise _fail(src, where, f"field {key!r} needs format_version 2")
 
 
 def model_from_dict(spec: dict[str, Any], source: str = "<dict>") -> Model:
@@ -117,11 +187,15 @@ def model_from_dict(spec: dict[str, Any], source: str = "<dict>") -> Model:
         raise _fail(src, "top level", "expected a table/object")
     _check_keys(src, "top level", spec, _TOP_KEYS)
     version = spec.get("format_version")
-    if version != FORMAT_VERSION:
-        raise _fail(src, "top level", f"field 'format_version' must be {FORMAT_VERSION}, got {version!r}")
+    if isinstance(version, bool) or version not in _VERSIONS:
+        raise _fail(src, "top level", f"field 'format_version' must be one of {_VERSIONS}, got {version!r}")
+    _check_version(src, version, "top level", "top level", spec)
     name = spec.get("name")
     if not isinstance(name, str) or not name:
         raise _fail(src, "top level", f"field 'name' must be a non-empty string, got {name!r}")
+    handedness = spec.get("handedness", "none")
+    if handedness not in HANDEDNESS:
+        raise _fail(src, "top level", f"field 'handedness' must be one of {', '.join(HANDEDNESS)}, got {handedness!r}")
 
     base = spec.get("base", {"kind": "fixed"})
     if not isinstance(base, dict):
@@ -170,9 +244,14 @@ def model_from_dict(spec: dict[str, Any], source: str = "<dict>") -> Model:
     parents, kinds, q_index, dh = [], [], [], []
     q_names = list(BASE_Q_NAMES[kind])
     link_names, link_frame, link_axis, link_len, link_rad, tips = [], [], [], [], [], []
+    pre_frames, pre = [], []
     for i, fr in enumerate(frames):
         where = f"frame {names[i]!r}"
         _check_keys(src, where, fr, _FRAME_KEYS)
+        _check_version(src, version, where, "frame", fr)
+        if "pre_transform" in fr:
+            pre_frames.append(i)
+            pre.append(_pre_transform(src, where, fr["pre_transform"]))
         parent = fr.get("parent", "base")
         if parent == "base":
             parents.append(-1)
@@ -209,6 +288,12 @@ def model_from_dict(spec: dict[str, Any], source: str = "<dict>") -> Model:
             if not isinstance(link, dict):
                 raise _fail(src, lw, "expected a table/object")
             _check_keys(src, lw, link, _LINK_KEYS)
+            _check_version(src, version, lw, "link", link)
+            lname = link.get("name", names[i])
+            if not isinstance(lname, str) or not lname:
+                raise _fail(src, lw, f"field 'name' must be a non-empty string, got {lname!r}")
+            if lname in link_names:
+                raise _fail(src, lw, f"field 'name': duplicate link name {lname!r}")
             axis = link.get("axis", "x")
             if axis not in AXES:
                 raise _fail(src, lw, f"field 'axis': unknown axis {axis!r} (valid: x, y, z)")
@@ -223,13 +308,14 @@ def model_from_dict(spec: dict[str, Any], source: str = "<dict>") -> Model:
                 raise _fail(src, lw, f"field 'tip' must be true or false, got {tip!r}")
             if tip:
                 tips.append(len(link_names))
-            link_names.append(names[i])
+            link_names.append(lname)
             link_frame.append(i)
             link_axis.append(AXES.index(axis))
             link_len.append(length)
             link_rad.append(radius)
 
     _check_acyclic(src, names, parents)
+    occ = _occluders(src, spec.get("occluders", []), names, link_names)
     return Model(
         name=name, frame_names=tuple(names), parents=tuple(parents), joint_kinds=tuple(kinds),
         q_index=tuple(q_index), base_kind=kind, q_names=tuple(q_names), link_names=tuple(link_names),
@@ -238,7 +324,42 @@ def model_from_dict(spec: dict[str, Any], source: str = "<dict>") -> Model:
         q_upper=np.array(upper, dtype=float), q_default=np.array(default, dtype=float),
         link_length_mm=np.array(link_len, dtype=float).reshape(-1),
         link_radius_mm=np.array(link_rad, dtype=float).reshape(-1),
+        pre_transform_frames=tuple(pre_frames), T_pre_transform=np.array(pre, dtype=float).reshape(-1, 4, 4),
+        occluder_names=tuple(o[0] for o in occ), occluder_frame=tuple(o[1] for o in occ),
+        occluder_start_mm=np.array([o[2] for o in occ], dtype=float).reshape(-1, 3),
+        occluder_end_mm=np.array([o[3] for o in occ], dtype=float).reshape(-1, 3),
+        occluder_radius_mm=np.array([o[4] for o in occ], dtype=float).reshape(-1), handedness=handedness,
     )
+
+
+def _occluders(src: str, items: Any, names: list[str], link_names: list[str]) -> list[tuple]:
+    if not isinstance(items, list):
+        raise _fail(src, "top level", "field 'occluders' must be a list of occluder tables")
+    out: list[tuple] = []
+    for k, oc in enumerate(items):
+        if not isinstance(oc, dict):
+            raise _fail(src, f"occluder #{k}", "expected a table/object")
+        oname = oc.get("name")
+        if not isinstance(oname, str) or not oname:
+            raise _fail(src, f"occluder #{k}", f"field 'name' must be a non-empty string, got {oname!r}")
+        where = f"occluder {oname!r}"
+        _check_keys(src, where, oc, _OCCLUDER_KEYS)
+        if oname in link_names or any(o[0] == oname for o in out):
+            raise _fail(src, where, f"field 'name': duplicate pill name {oname!r} (links and occluders share names)")
+        frame = oc.get("frame")
+        if frame not in names:
+            hint = difflib.get_close_matches(str(frame), names, n=1)
+            extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+            raise _fail(src, where, f"field 'frame': frame {frame!r} is not defined{extra}")
+        radius = _number(src, where, oc, "radius_mm")
+        if radius < 0:
+            raise _fail(src, where, f"field 'radius_mm': negative radius {radius}")
+        for key in ("start_mm", "end_mm"):
+            if key not in oc:
+                raise _fail(src, where, f"missing field {key!r}")
+        out.append((oname, names.index(frame), _vector(src, where, oc, "start_mm", [0.0] * 3),
+                    _vector(src, where, oc, "end_mm", [0.0] * 3), radius))
+    return out
 
 
 def _check_acyclic(src: str, names: list[str], parents: list[int]) -> None:
@@ -256,10 +377,32 @@ def _check_acyclic(src: str, names: list[str], parents: list[int]) -> None:
                         f"field 'parent': parent {names[p]!r} must be listed before its child")
 
 
-def _clean(x: float) -> float | int:
-    """Round tiny float noise from deg<->rad conversion so files stay readable."""
-    r = round(float(x), 9)
+def _short(x: float) -> float | int:
+    r = round(x, 9)
     return int(r) if r == int(r) and abs(r) < 1e15 else r
+
+
+def _clean(x: float) -> float | int:
+    """A length or matrix entry for a file: shortened to 9 decimals where that is exact."""
+    x = float(x)
+    r = _short(x)
+    return r if float(r) == x else x
+
+
+def _deg(x: float) -> float | int:
+    """Degrees for a file whose ``math.radians`` gives back exactly ``x`` (rad) where such a value
+    exists: the 9-decimal rounding, else ``math.degrees(x)`` or one of its 8 float neighbours."""
+    x = float(x)
+    d = math.degrees(x)
+    r = _short(d)
+    if math.radians(r) == x:
+        return r
+    lo = hi = d
+    candidates = [d]
+    for _ in range(4):
+        lo, hi = float(np.nextafter(lo, -math.inf)), float(np.nextafter(hi, math.inf))
+        candidates += [lo, hi]
+    return next((c for c in candidates if math.radians(c) == x), d)
 
 
 def model_to_dict(model: Model) -> dict[str, Any]:
@@ -275,30 +418,47 @@ def model_to_dict(model: Model) -> dict[str, Any]:
         base["default_translation_mm"] = [_clean(v) for v in q0[4:7]]
         base["translation_limits_mm"] = [_clean(lo[4]), _clean(hi[4])]
     elif model.base_kind == "planar":
-        base["default"] = [_clean(q0[0]), _clean(q0[1]), _clean(math.degrees(q0[2]))]
+        base["default"] = [_clean(q0[0]), _clean(q0[1]), _deg(q0[2])]
         base["xy_limits_mm"] = [_clean(lo[0]), _clean(hi[0])]
-        base["yaw_limits_deg"] = [_clean(math.degrees(lo[2])), _clean(math.degrees(hi[2]))]
+        base["yaw_limits_deg"] = [_deg(lo[2]), _deg(hi[2])]
     frames = []
     link_of = {f: k for k, f in enumerate(model.link_frame)}
+    pre_of = {f: k for k, f in enumerate(model.pre_transform_frames)}
+    pre = np.asarray(model.T_pre_transform)
     for i, name in enumerate(model.frame_names):
         p = model.parents[i]
         fr: dict[str, Any] = {
             "name": name, "parent": "base" if p < 0 else model.frame_names[p],
-            "alpha_deg": _clean(math.degrees(dh[i, 0])), "a_mm": _clean(dh[i, 1]),
-            "d_mm": _clean(dh[i, 2]), "theta_deg": _clean(math.degrees(dh[i, 3])),
+            "alpha_deg": _deg(dh[i, 0]), "a_mm": _clean(dh[i, 1]),
+            "d_mm": _clean(dh[i, 2]), "theta_deg": _deg(dh[i, 3]),
             "joint": model.joint_kinds[i],
         }
         j = model.q_index[i]
         if j >= 0:
-            conv = math.degrees if model.joint_kinds[i] == "revolute" else float
-            fr["limits"] = [_clean(conv(lo[j])), _clean(conv(hi[j]))]
-            fr["default"] = _clean(conv(q0[j]))
+            conv = _deg if model.joint_kinds[i] == "revolute" else _clean
+            fr["limits"] = [conv(lo[j]), conv(hi[j])]
+            fr["default"] = conv(q0[j])
         if i in link_of:
             k = link_of[i]
-            fr["link"] = {"axis": AXES[model.link_axis[k]], "length_mm": _clean(model.link_length_mm[k]),
-                          "radius_mm": _clean(model.link_radius_mm[k]), "tip": k in model.tip_links}
+            link = {"axis": AXES[model.link_axis[k]], "length_mm": _clean(model.link_length_mm[k]),
+                    "radius_mm": _clean(model.link_radius_mm[k]), "tip": k in model.tip_links}
+            fr["link"] = link if model.link_names[k] == name else {"name": model.link_names[k], **link}
+        if i in pre_of:
+            T = pre[pre_of[i]]
+            fr["pre_transform"] = {"rotation": [[_clean(v) for v in row] for row in T[:3, :3]],
+                                   "translation_mm": [_clean(v) for v in T[:3, 3]]}
         frames.append(fr)
-    return {"format_version": FORMAT_VERSION, "name": model.name, "base": base, "frames": frames}
+    d: dict[str, Any] = {"format_version": FORMAT_VERSION, "name": model.name}
+    if model.handedness != "none":
+        d["handedness"] = model.handedness
+    d["base"], d["frames"] = base, frames
+    if model.n_occluders:
+        s0, s1, rad = (np.asarray(a) for a in (model.occluder_start_mm, model.occluder_end_mm,
+                                                model.occluder_radius_mm))
+        d["occluders"] = [{"name": n, "frame": model.frame_names[model.occluder_frame[k]],
+                           "start_mm": [_clean(v) for v in s0[k]], "end_mm": [_clean(v) for v in s1[k]],
+                           "radius_mm": _clean(rad[k])} for k, n in enumerate(model.occluder_names)]
+    return d
 
 
 def _toml_value(v: Any) -> str:
@@ -316,22 +476,33 @@ def _toml_value(v: Any) -> str:
 
 
 def _to_toml(d: dict[str, Any]) -> str:
-    lines = [f"{k} = {_toml_value(v)}" for k, v in d.items() if k not in ("base", "frames")]
+    lines = [f"{k} = {_toml_value(v)}" for k, v in d.items() if k not in ("base", "frames", "occluders")]
     lines += ["", "[base]"] + [f"{k} = {_toml_value(v)}" for k, v in d["base"].items()]
     for fr in d["frames"]:
         lines += ["", "[[frames]]"] + [f"{k} = {_toml_value(v)}" for k, v in fr.items()]
+    for oc in d.get("occluders", []):
+        lines += ["", "[[occluders]]"] + [f"{k} = {_toml_value(v)}" for k, v in oc.items()]
     return "\n".join(lines) + "\n"
 
 
 def load_model(path: str | Path) -> Model:
-    """Load a model from a ``.toml`` or ``.json`` file.
+    """Load a model from a ``.toml`` or ``.json`` model file, or import an MJCF ``.xml`` or a
+    ``.urdf`` with the defaults of :func:`load_mjcf` / :func:`load_urdf`.
 
     Raises:
         ModelFileError: unreadable, unparsable or invalid file; the message names the file.
     """
     path = Path(path)
+    if path.suffix == ".xml":
+        from ._mjcf import load_mjcf
+
+        return load_mjcf(path)
+    if path.suffix == ".urdf":
+        from ._urdf import load_urdf
+
+        return load_urdf(path)
     if path.suffix not in (".json", ".toml"):
-        raise ModelFileError(f"{path}: unknown model file type {path.suffix!r} (use .toml or .json)")
+        raise ModelFileError(f"{path}: unknown model file type {path.suffix!r} (use .toml, .json, MJCF .xml or .urdf)")
     try:
         text = path.read_text()
     except OSError as err:

@@ -13,9 +13,11 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-__all__ = ["Model", "JOINT_KINDS", "BASE_KINDS", "AXES"]
+__all__ = ["Model", "JOINT_KINDS", "BASE_KINDS", "AXES", "HANDEDNESS"]
 
 JOINT_KINDS = ("revolute", "prismatic", "fixed")
+#: ``model.handedness``: a right or left hand, or "none" (not a hand, or not stated).
+HANDEDNESS = ("right", "left", "none")
 BASE_KINDS = ("fixed", "free", "planar")
 AXES = ("x", "y", "z")
 
@@ -31,6 +33,11 @@ BASE_Q_KINDS = {
     "free": ("quat",) * 4 + ("length",) * 3,
     "planar": ("length", "length", "angle"),
 }
+
+
+def _empty(*shape):
+    """Default factory of an empty traced field (no fixed transforms, no occluders)."""
+    return lambda: np.zeros(shape)
 
 
 def _levels(parents: tuple[int, ...]) -> tuple[tuple[int, ...], ...]:
@@ -52,14 +59,23 @@ class Model(eqx.Module):
     ``T_world_mount @ base_motion(q_base)``: identity for a fixed base, quaternion + translation
     for a free palm (DigitEyes §3.1) and (x, y, yaw) in the mount's x-y plane for a planar base.
 
+    A frame listed in ``pre_transform_frames`` has a general fixed transform applied *before* its
+    DH transform, ``T_parent_frame = T_pre_transform @ DH``: imported MJCF/URDF bodies use it
+    for their offsets and quaternions. With none listed, the kinematics are those of the plain
+    DH tree, bit for bit.
+
     q layout: the base entries first (``BASE_Q_NAMES``), then one entry per moving frame in frame
     order. Every frame may carry a pill (cylinder + hemispheres) along one of its axes starting
-    at the frame origin; a link flagged as a tip gives a tip feature at its far end.
+    at the frame origin; a link flagged as a tip gives a tip feature at its far end. Occluder
+    pills (a palm, a forearm) are attached to a frame as a segment in frame coordinates; they
+    hide links and belong to the silhouette, but carry no link or tip features
+    (:func:`jaxhand.kinematics.occluder_pills` gives their world ends).
 
     Static fields (changing them recompiles): name, frame_names, parents, joint_kinds, q_index,
-    base_kind, q_names, link_names, link_frame, link_axis, tip_links.
+    base_kind, q_names, link_names, link_frame, link_axis, tip_links, pre_transform_frames,
+    occluder_names, occluder_frame, handedness.
     Traced fields (arrays): dh, T_world_mount, q_lower, q_upper, q_default, link_length_mm,
-    link_radius_mm.
+    link_radius_mm, T_pre_transform, occluder_start_mm, occluder_end_mm, occluder_radius_mm.
     """
 
     name: str = eqx.field(static=True)
@@ -82,6 +98,22 @@ class Model(eqx.Module):
     link_length_mm: Float[Array, " links"] = eqx.field(converter=jnp.asarray)
     link_radius_mm: Float[Array, " links"] = eqx.field(converter=jnp.asarray)
 
+    #: Static: frames with a fixed transform before their DH transform, in frame order.
+    pre_transform_frames: tuple[int, ...] = eqx.field(static=True, default=())
+    #: Traced: ``T_parent_pre`` of each frame in ``pre_transform_frames`` (rotation + translation, mm).
+    T_pre_transform: Float[Array, "pre 4 4"] = eqx.field(converter=jnp.asarray, default_factory=_empty(0, 4, 4))
+    #: Static: names of the occluder-only pills (no link or tip features).
+    occluder_names: tuple[str, ...] = eqx.field(static=True, default=())
+    #: Static: frame each occluder pill is attached to.
+    occluder_frame: tuple[int, ...] = eqx.field(static=True, default=())
+    #: Traced: the occluders' segment ends in their frame's coordinates (mm).
+    occluder_start_mm: Float[Array, "occluders 3"] = eqx.field(converter=jnp.asarray, default_factory=_empty(0, 3))
+    occluder_end_mm: Float[Array, "occluders 3"] = eqx.field(converter=jnp.asarray, default_factory=_empty(0, 3))
+    #: Traced: the occluders' radii (mm).
+    occluder_radius_mm: Float[Array, " occluders"] = eqx.field(converter=jnp.asarray, default_factory=_empty(0))
+    #: Static: "right", "left" or "none" (see :func:`jaxhand.model.mirror_model`).
+    handedness: str = eqx.field(static=True, default="none")
+
     def __check_init__(self):
         n = len(self.frame_names)
         for field in ("parents", "joint_kinds", "q_index"):
@@ -98,6 +130,18 @@ class Model(eqx.Module):
             raise ValueError("Model: link_frame and link_axis need one entry per link")
         if self.link_length_mm.shape != (nl,) or self.link_radius_mm.shape != (nl,):
             raise ValueError(f"Model: link_length_mm and link_radius_mm need shape ({nl},)")
+        npre = len(self.pre_transform_frames)
+        if self.T_pre_transform.shape != (npre, 4, 4):
+            raise ValueError(f"Model.T_pre_transform: expected shape ({npre}, 4, 4), got {self.T_pre_transform.shape}")
+        no = len(self.occluder_names)
+        if len(self.occluder_frame) != no:
+            raise ValueError("Model: occluder_frame needs one entry per occluder")
+        for field, shape in (("occluder_start_mm", (no, 3)), ("occluder_end_mm", (no, 3)),
+                             ("occluder_radius_mm", (no,))):
+            if getattr(self, field).shape != shape:
+                raise ValueError(f"Model.{field}: expected shape {shape}, got {getattr(self, field).shape}")
+        if self.handedness not in HANDEDNESS:
+            raise ValueError(f"Model.handedness: expected one of {HANDEDNESS}, got {self.handedness!r}")
 
     # ---- derived structure (static, cheap) ----
     @property
@@ -125,6 +169,10 @@ class Model(eqx.Module):
     @property
     def n_tips(self) -> int:
         return len(self.tip_links)
+
+    @property
+    def n_occluders(self) -> int:
+        return len(self.occluder_names)
 
     @property
     def tip_names(self) -> tuple[str, ...]:
@@ -179,19 +227,32 @@ class Model(eqx.Module):
         except ValueError:
             raise KeyError(f"model {self.name!r} has no link {name!r}; valid: {', '.join(self.link_names)}") from None
 
+    def occluder_lookup(self, name: str) -> int:
+        """Index of the occluder pill called ``name``; the error lists the valid names."""
+        try:
+            return self.occluder_names.index(name)
+        except ValueError:
+            raise KeyError(f"model {self.name!r} has no occluder {name!r}; valid: "
+                           f"{', '.join(self.occluder_names) or '(none)'}") from None
+
     def structure(self) -> tuple:
         """Everything static about the model; equal structures share compiled code."""
         return (self.name, self.frame_names, self.parents, self.joint_kinds, self.q_index, self.base_kind,
-                self.q_names, self.link_names, self.link_frame, self.link_axis, self.tip_links)
+                self.q_names, self.link_names, self.link_frame, self.link_axis, self.tip_links,
+                self.pre_transform_frames, self.occluder_names, self.occluder_frame, self.handedness)
 
     def with_lengths(self, scale: float) -> Model:
-        """The same structure with every length scaled (DH a and d, mount, pills, prismatic limits)."""
+        """The same structure with every length scaled (DH a and d, mount, fixed transforms, pills,
+        occluders, prismatic limits)."""
         lengths = jnp.asarray(np.where(self.is_angle | (np.array(self.q_kinds) == "quat"), 1.0, scale))
         dh = self.dh.at[:, 1:3].multiply(scale)
         mount = self.T_world_mount.at[:3, 3].multiply(scale)
+        pre = self.T_pre_transform.at[:, :3, 3].multiply(scale)
         return eqx.tree_at(
-            lambda m: (m.dh, m.T_world_mount, m.link_length_mm, m.link_radius_mm, m.q_lower, m.q_upper, m.q_default),
+            lambda m: (m.dh, m.T_world_mount, m.link_length_mm, m.link_radius_mm, m.q_lower, m.q_upper, m.q_default,
+                       m.T_pre_transform, m.occluder_start_mm, m.occluder_end_mm, m.occluder_radius_mm),
             self,
             (dh, mount, self.link_length_mm * scale, self.link_radius_mm * scale,
-             self.q_lower * lengths, self.q_upper * lengths, self.q_default * lengths),
+             self.q_lower * lengths, self.q_upper * lengths, self.q_default * lengths, pre,
+             self.occluder_start_mm * scale, self.occluder_end_mm * scale, self.occluder_radius_mm * scale),
         )

@@ -9,6 +9,12 @@ Each fixed mount is chosen so that an orthographic camera with identity rotation
 y down, z forward) sees the model the way the thesis draws it: the fingers point up the image and
 move in (or, for the 21-DOF hand, spread in) the image plane. Tilts such as the 45-degree plane
 of thesis §6 belong to the camera, not the model.
+
+Handedness: the thesis hands (``hand21``, ``hand27``, ``mouse3d``) are *left* hands. With
+radial (towards the index), distal and palmar (the direction of flexion) axes, a right hand has
+``det[radial, distal, palmar] = +1`` (the MuJoCo development set's hand); these have -1, as
+``tests/test_model.py`` checks. ``hand21_right`` and ``hand27_right`` are their mirror images
+(:func:`mirror_model`), with the same joint names, limits and sign conventions.
 """
 
 from __future__ import annotations
@@ -93,9 +99,12 @@ def _thumb5() -> list[dict[str, Any]]:
     ]
 
 
-def _spec(name, description, frames, base=None) -> dict[str, Any]:
-    return {"format_version": FORMAT_VERSION, "name": name, "description": description,
+def _spec(name, description, frames, base=None, handedness="none") -> dict[str, Any]:
+    spec = {"format_version": FORMAT_VERSION, "name": name, "description": description,
             "base": base or {"kind": "fixed"}, "frames": frames}
+    if handedness != "none":
+        spec["handedness"] = handedness
+    return spec
 
 
 _UPRIGHT_HAND = [[-1, 0, 0], [0, -1, 0], [0, 0, 1]]  # RotZ(180): fingers (+y0) up the image, palm to camera
@@ -150,14 +159,14 @@ def _hand_frames() -> list[dict[str, Any]]:
 
 def _hand21() -> dict[str, Any]:
     return _spec("hand21", "Full hand, static wrist: 4 DOF per finger, 5 DOF thumb (thesis Table 6.2)",
-                 _hand_frames(), {"kind": "fixed", "rotation": _UPRIGHT_HAND})
+                 _hand_frames(), {"kind": "fixed", "rotation": _UPRIGHT_HAND}, handedness="left")
 
 
 def _hand27() -> dict[str, Any]:
     return _spec("hand27", "DigitEyes hand: the 21-DOF hand on a free palm (quaternion + translation, "
                  "27 DOF in 28 parameters)", _hand_frames(),
                  {"kind": "free", "default_quaternion": [0, 0, 0, 1], "default_translation_mm": [0, 0, 0],
-                  "translation_limits_mm": [-500, 500]})
+                  "translation_limits_mm": [-500, 500]}, handedness="left")
 
 
 def _mouse3d() -> dict[str, Any]:
@@ -172,7 +181,8 @@ def _mouse3d() -> dict[str, Any]:
     ]
     return _spec("mouse3d", "DigitEyes 3D-mouse hand: planar palm (3 DOF), index (3 DOF), ring and thumb "
                  "abduction (1 DOF each); the table is the mount's x-y plane, z up", index + ring + thumb,
-                 {"kind": "planar", "default": [0, 0, 0], "xy_limits_mm": [-300, 300], "yaw_limits_deg": [-180, 180]})
+                 {"kind": "planar", "default": [0, 0, 0], "xy_limits_mm": [-300, 300], "yaw_limits_deg": [-180, 180]},
+                 handedness="left")
 
 
 def _planar(kind: str) -> Callable[[], dict[str, Any]]:
@@ -192,9 +202,24 @@ def _planar(kind: str) -> Callable[[], dict[str, Any]]:
     return lambda: _spec(f"planar_{kind}", desc, frames, {"kind": "fixed", "rotation": R})
 
 
+def _mirrored(make: Callable[[], dict[str, Any]], description: str) -> Callable[[], dict[str, Any]]:
+    """The file dictionary of the mirror image of a built-in (see :mod:`._mirror`)."""
+    def spec() -> dict[str, Any]:
+        from ._file import model_to_dict
+        from ._mirror import mirror_model
+
+        d = model_to_dict(mirror_model(model_from_dict(make())))
+        return {"format_version": d.pop("format_version"), "name": d.pop("name"), "description": description, **d}
+    return spec
+
+
 _BUILTINS: dict[str, Callable[[], dict[str, Any]]] = {
     "index": _index, "index_thumb": _index_thumb, "two_fingers": _two_fingers, "hand21": _hand21,
-    "hand27": _hand27, "mouse3d": _mouse3d,
+    "hand21_right": _mirrored(_hand21, "Right hand: the mirror image of hand21 (same joints, limits and signs)"),
+    "hand27": _hand27,
+    "hand27_right": _mirrored(_hand27, "Right hand on a free palm: the mirror image of hand27 (palm quaternion "
+                              "x, y and translation z change sign, see mirror_q)"),
+    "mouse3d": _mouse3d,
     "planar_r": _planar("r"), "planar_p": _planar("p"), "planar_pr": _planar("pr"), "planar_rr": _planar("rr"),
 }
 BUILTIN_DESCRIPTIONS = {name: f()["description"] for name, f in _BUILTINS.items()}
