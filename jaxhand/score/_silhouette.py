@@ -185,8 +185,8 @@ class Silhouette:
         label: (H, W) int16 index of the nearest capsule (by mean axis depth) at each pixel, -1 on
             background.
         occluder: (n,) the capsules' occluder flags (from :class:`Capsules`).
-        adjacent: (n, n) bool, capsules that touch end to end (a pill chain, a finger and its palm
-            capsule): the boundary between them is no contour in the image.
+        adjacent: (n, n) bool, capsules that join (end to end, as a pill chain or a finger and its
+            palm capsule, or two occluders): the boundary between them is no contour in the image.
     """
 
     mask: np.ndarray
@@ -196,11 +196,17 @@ class Silhouette:
 
 
 def _adjacency(capsules: Capsules) -> np.ndarray:
-    """Capsules with a pair of axis ends closer than half their summed radii touch end to end."""
+    """Capsules that join without an occluding contour between them.
+
+    Two capsules join when a pair of their axis ends lies closer than half their summed radii
+    (a pill chain, a finger and its palm capsule), and any two occluders join (a palm built of
+    overlapping capsules is one body: its seams are shallow grooves, not contours).
+    """
     e = np.stack([capsules.start, capsules.end], 1)  # (n, 2, 3)
     d = np.linalg.norm(e[:, None, :, None] - e[None, :, None, :], axis=-1).min(axis=(2, 3))
     r = capsules.radius_mm
-    return d < 0.5 * (r[:, None] + r[None, :])
+    occ = capsules.occluder
+    return (d < 0.5 * (r[:, None] + r[None, :])) | (occ[:, None] & occ[None, :])
 
 
 def rasterize(capsules: Capsules, camera, *, rim_points: int = 32, shrink_px: float = 0.5) -> Silhouette:
