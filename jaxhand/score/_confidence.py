@@ -3,7 +3,8 @@
 The one home of the loss rule. Three pieces of evidence, each mapped linearly onto [0, 1]
 between a "lost" and a "good" level and clipped:
 
-- the global image score (:func:`score_silhouette`): high is good;
+- the global image score (:func:`score_silhouette`), optionally relative to a reference score:
+  high is good;
 - the solve's residual RMS (px): low is good; a small residual alone proves little (a model
   that slid onto clutter fits its edges well), so this only ever lowers the confidence;
 - the valid share of the feature slots (found / expected): high is good.
@@ -28,14 +29,25 @@ __all__ = ["ConfidenceConfig", "frame_confidence"]
 class ConfidenceConfig:
     """Levels of the confidence ramps (host values).
 
+    The score levels were set on the MuJoCo dev set (tests/test_score.py): true poses score
+    0.92-0.95 with the palm drawn as an occluder (0.97 on jaxhand's own renders), one finger
+    20 deg off 0.70-0.76, every joint 20 deg off 0.34-0.58. A model without the palm scores
+    its true poses lower (0.81-0.83: the IoU falls to 0.55-0.59); pass the score of a frame
+    known to be right as ``score_reference`` (e.g. the first frame's when tracking starts from a
+    given pose) so the levels apply to the ratio.
+
     Attributes:
-        score_lost, score_good: image score at which its term is 0 (lost) and 1.
+        score_lost, score_good: image score (over ``score_reference``) at which its term is 0
+            (lost) and 1.
+        score_reference: the score of a right pose with this model and foreground; scores are
+            divided by it (and capped at 1) before the ramp. 1: use them as they are.
         rms_good_px, rms_lost_px: residual RMS (px) at which its term is 1 and 0 (lost).
         valid_lost, valid_good: valid share of the feature slots at which its term is 0 (lost) and 1.
     """
 
-    score_lost: float = 0.55
-    score_good: float = 0.8
+    score_lost: float = 0.6
+    score_good: float = 0.9
+    score_reference: float = 1.0
     rms_good_px: float = 1.5
     rms_lost_px: float = 6.0
     valid_lost: float = 0.2
@@ -46,6 +58,8 @@ class ConfidenceConfig:
                              (self.valid_lost, self.valid_good, "valid")):
             if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
                 raise InputError(f"ConfidenceConfig: the {name} levels need {lo!r} < {hi!r}")
+        if not (np.isfinite(self.score_reference) and self.score_reference > 0):
+            raise InputError(f"ConfidenceConfig.score_reference: need > 0, got {self.score_reference!r}")
 
 
 def _ramp(x, lo, hi):
@@ -68,6 +82,7 @@ def frame_confidence(score, residual_rms_px, valid_share, config: ConfidenceConf
     s, r, v = (np.asarray(a, float) for a in (score, residual_rms_px, valid_share))
     finite = np.isfinite(s) & np.isfinite(r) & np.isfinite(v)
     s, r, v = (np.where(finite, a, 0.0) for a in (s, r, v))
+    s = np.minimum(s / config.score_reference, 1.0)
     c_score = _ramp(s, config.score_lost, config.score_good)
     c_rms = 1.0 - _ramp(r, config.rms_good_px, config.rms_lost_px)
     c_valid = _ramp(v, config.valid_lost, config.valid_good)

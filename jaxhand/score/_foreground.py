@@ -187,7 +187,7 @@ class SkinForeground(AbstractForeground):
             raise InputError(f"SkinForeground.cov: need a symmetric positive definite 2x2 matrix, got {self.cov!r}")
 
     @staticmethod
-    def fit(image, mask, *, max_distance: float = 2.5, min_luma: float = 30.0, open_px: int = 1) -> SkinForeground:
+    def fit(image, mask, *, max_distance: float = 3.0, min_luma: float = 30.0, open_px: int = 1) -> SkinForeground:
         """Fit the Gaussian to the pixels of a BGR ``image`` where ``mask`` (H, W) is True.
 
         Raises:
