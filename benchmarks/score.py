@@ -129,7 +129,8 @@ def separation(data: Path, stride: int, trials: int, seed: int = 0) -> tuple[lis
                     samples.append({"sequence": label, "tip_error_px": e, "score_palm": sp, "score_fingers": sf})
             err = np.array(err)
             row = {"sequence": label, "poses": len(err), "true_score_palm_mean": float(np.mean(true_palm)),
-                   "true_score_palm_min": float(np.min(true_palm)), "true_score_fingers_mean": float(np.mean(true_fing))}
+                   "true_score_palm_min": float(np.min(true_palm)),
+                   "true_score_fingers_mean": float(np.mean(true_fing))}
             for variant, scores, cfg in (("palm", s_palm, ConfidenceConfig()),
                                          ("fingers", s_fing, ConfidenceConfig(score_reference=ref))):
                 conf, lost = frame_confidence(np.array(scores), 0.0, 1.0, cfg)

@@ -17,6 +17,7 @@ from jaxhand.score import (
     image_evidence,
     rasterize,
     score_frame,
+    score_poses,
     score_silhouette,
 )
 
@@ -174,3 +175,16 @@ def test_default_confidence_separates_the_mujoco_true_pose_from_20_deg_off(mujoc
     off = score_silhouette(rasterize(fingers(capsules(mujoco["bodies"], moved)[0]), cam), ev, no_iou).score
     c, lost = frame_confidence(np.array([ref, off]), 0.5, 1.0, ConfidenceConfig(score_reference=ref))
     assert c[0] == 1.0 and c[1] < 0.5
+
+
+def test_score_poses_matches_one_at_a_time(scene):
+    m, cam, q, img = scene
+    fg = ThresholdForeground()
+    ev = image_evidence(img, fg)
+    qs = np.stack([q, q + 0.2, q - 0.1])
+    batch = score_poses(m, cam, qs, ev)
+    for qi, s in zip(qs, batch):
+        assert s.score == score_frame(m, cam, qi, img, fg).score
+    assert batch[0].score > batch[1].score
+    with pytest.raises(ValueError, match="qs"):
+        score_poses(m, cam, q, ev)

@@ -6,7 +6,8 @@ judge (here). The tracker, once per frame:
 1. ``evidence = image_evidence(frame, foreground, config)``: the foreground mask and the edge
    distance transform, shared by every hypothesis of the frame;
 2. per pose: ``sil = rasterize(capsules_from_model(model, q) + occluders, camera)`` and
-   ``s = score_silhouette(sil, evidence, config)``;
+   ``s = score_silhouette(sil, evidence, config)``, or for a stack of hypotheses
+   ``score_poses(model, camera, qs, evidence, occluders=..., config=...)``;
 3. ``confidence, lost = frame_confidence(s.score, residual_rms_px, valid_share)``.
 
 - :class:`Capsules`, :func:`capsules_from_model`, :func:`rasterize`: the model's silhouette.
@@ -30,6 +31,7 @@ from ._score import ScoreConfig as ScoreConfig
 from ._score import image_evidence as image_evidence
 from ._score import model_contour as model_contour
 from ._score import score_frame as score_frame
+from ._score import score_poses as score_poses
 from ._score import score_silhouette as score_silhouette
 from ._silhouette import CameraNumbers as CameraNumbers
 from ._silhouette import Capsules as Capsules
@@ -37,9 +39,11 @@ from ._silhouette import Silhouette as Silhouette
 from ._silhouette import camera_numbers as camera_numbers
 from ._silhouette import capsule_outlines as capsule_outlines
 from ._silhouette import capsules_from_model as capsules_from_model
+from ._silhouette import capsules_from_model_batch as capsules_from_model_batch
 from ._silhouette import rasterize as rasterize
 
-__all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsules_from_model", "capsule_outlines",
+__all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsules_from_model",
+           "capsules_from_model_batch", "capsule_outlines",
            "rasterize", "AbstractForeground", "ThresholdForeground", "BackgroundForeground", "SkinForeground",
            "as_grey", "ScoreConfig", "ImageEvidence", "ImageScore", "image_evidence", "model_contour",
-           "score_silhouette", "score_frame", "ConfidenceConfig", "frame_confidence"]
+           "score_silhouette", "score_frame", "score_poses", "ConfidenceConfig", "frame_confidence"]

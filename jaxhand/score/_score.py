@@ -37,10 +37,10 @@ import numpy as np
 
 from .._errors import InputError
 from ._foreground import AbstractForeground, as_grey
-from ._silhouette import Capsules, Silhouette, capsules_from_model, rasterize
+from ._silhouette import Capsules, Silhouette, camera_numbers, capsules_from_model, capsules_from_model_batch, rasterize
 
 __all__ = ["ScoreConfig", "ImageEvidence", "ImageScore", "image_evidence", "model_contour", "score_silhouette",
-           "score_frame"]
+           "score_frame", "score_poses"]
 
 
 @dataclass(frozen=True)
@@ -260,3 +260,27 @@ def score_frame(model, camera, q, image, foreground: AbstractForeground | np.nda
         caps = caps + occluders
     sil = rasterize(caps, camera, rim_points=config.rim_points)
     return score_silhouette(sil, image_evidence(image, foreground, config), config)
+
+
+def score_poses(model, camera, qs, evidence: ImageEvidence, *, occluders: Capsules | None = None,
+                config: ScoreConfig = ScoreConfig()) -> list[ImageScore]:
+    """Scores of several poses (hypotheses) on one frame whose evidence is already computed.
+
+    Args:
+        model: the tracked model.
+        camera: the camera of the frame.
+        qs: (k, n_q) states; the kinematics of all of them is one vmapped call.
+        evidence: :func:`image_evidence` of the frame.
+        occluders: scene capsules the model lacks, drawn with every pose.
+        config: score settings.
+
+    Returns:
+        One :class:`ImageScore` per row of ``qs``.
+    """
+    cam = camera_numbers(camera)
+    out = []
+    for caps in capsules_from_model_batch(model, qs):
+        if occluders is not None:
+            caps = caps + occluders
+        out.append(score_silhouette(rasterize(caps, cam, rim_points=config.rim_points), evidence, config))
+    return out

@@ -25,16 +25,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import cv2
+import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
 from ..camera import Orthographic, Perspective
-from ..kinematics import forward
+from ..kinematics import forward, pose
 from ..model import Model
 
-__all__ = ["Capsules", "capsules_from_model", "capsules_in_camera", "CameraNumbers", "camera_numbers",
-           "capsule_outlines", "rasterize", "Silhouette"]
+__all__ = ["Capsules", "capsules_from_model", "capsules_from_model_batch", "capsules_in_camera", "CameraNumbers",
+           "camera_numbers", "capsule_outlines", "rasterize", "Silhouette"]
 
 # Fixed-point bits of the polygon vertices handed to OpenCV (1/16 px).
 _SHIFT = 4
@@ -122,6 +124,21 @@ def capsules_from_model(model: Model, q) -> Capsules:
     pose = forward(model, jnp.asarray(q, dtype=model.q_lower.dtype))
     return Capsules(start=np.asarray(pose.link_start, float), end=np.asarray(pose.link_end, float),
                     radius_mm=np.asarray(model.link_radius_mm, float), occluder=np.zeros(model.n_links, bool))
+
+
+# One compiled kinematics call for a stack of states (hypotheses); the model is shared.
+_pose_batch = eqx.filter_jit(jax.vmap(pose, in_axes=(None, 0)))
+
+
+def capsules_from_model_batch(model: Model, qs) -> list[Capsules]:
+    """The model's pills at each state of ``qs`` (k, n_q), from one jitted, vmapped kinematics call."""
+    qs = jnp.asarray(qs, dtype=model.q_lower.dtype)
+    if qs.ndim != 2 or qs.shape[1] != model.n_q:
+        raise InputError(f"qs: expected shape (k, {model.n_q}) for model {model.name!r}, got {qs.shape}")
+    p = _pose_batch(model, qs)
+    start, end = np.asarray(p.link_start, float), np.asarray(p.link_end, float)
+    radius, occ = np.asarray(model.link_radius_mm, float), np.zeros(model.n_links, bool)
+    return [Capsules(start=start[i], end=end[i], radius_mm=radius, occluder=occ) for i in range(len(start))]
 
 
 def capsules_in_camera(capsules: Capsules, cam: CameraNumbers) -> tuple[np.ndarray, np.ndarray]:
