@@ -2,6 +2,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import CompileCounter
 
 from jaxhand.filter import (
     KalmanState,
@@ -129,9 +130,11 @@ def test_exact_features_cost_no_accuracy_unlike_the_fixed_gain_filter():
     s = prior_init(jnp.asarray(truth[0]), 0.01, 0.1)
     g = ghk_init(jnp.asarray(truth[0]))
     err_prior, err_ghk = [], []
+    step = jax.jit(lambda s, z: prior_update(prior_predict(s, 1 / 30, 5.0), z, lam))
+    step_ghk = jax.jit(lambda g, z: ghk_update(ghk_predict(g, 1 / 30), z, 0.85, 1 / 30))
     for z in truth[1:]:
-        s = prior_update(prior_predict(s, 1 / 30, 5.0), jnp.asarray(z), lam)
-        g = ghk_update(ghk_predict(g, 1 / 30), jnp.asarray(z), 0.85, 1 / 30)
+        s = step(s, jnp.asarray(z))
+        g = step_ghk(g, jnp.asarray(z))
         err_prior.append(np.abs(np.asarray(s.q) - z).max())
         err_ghk.append(np.abs(np.asarray(g.x) - z).max())
     assert max(err_prior) < 1e-5  # rad: the raw solve's error is 0; (Lambda P)^-1 ~ 1e-8 leaks through
@@ -141,3 +144,18 @@ def test_exact_features_cost_no_accuracy_unlike_the_fixed_gain_filter():
 def test_state_shape_is_checked():
     with pytest.raises(ValueError, match="even length"):
         PriorState(x=jnp.zeros(3), P=jnp.eye(3))
+
+
+def test_one_compiled_step_serves_new_numbers():
+    @jax.jit
+    def step(s, z, lam, dt, a):
+        return prior_update(prior_predict(s, dt, a), z, lam)
+
+    s = prior_init(jnp.zeros(3), 0.1, 1.0)
+    s = step(s, jnp.ones(3), jnp.eye(3), jnp.asarray(1 / 30), jnp.asarray(2.0))
+    with CompileCounter() as c:
+        s = step(s, jnp.ones(3), 5.0 * jnp.eye(3), jnp.asarray(1 / 60), jnp.asarray(3.0))
+        r = jax.jit(prior_residuals)(jnp.ones(3), s)
+        r = jax.jit(prior_residuals)(jnp.zeros(3), s)
+    assert c.count == 1  # prior_residuals only; the step reuses its program
+    assert r.shape == (3,) and np.all(np.isfinite(np.asarray(r)))
