@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from jaxtyping import Bool, Float
 
 from .._errors import InputError
 
@@ -70,7 +71,7 @@ def _ramp(x, lo, hi):
 
 
 def frame_confidence(score, residual_rms_px, valid_share, config: ConfidenceConfig = ConfidenceConfig()
-                     ) -> tuple[np.ndarray, np.ndarray]:
+                     ) -> tuple[Float[np.ndarray, "*frames"], Bool[np.ndarray, "*frames"]]:
     """Confidence in [0, 1] and the loss flag of each frame.
 
     Args:

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from jaxtyping import Bool, Float, UInt8
 
 from .._errors import InputError
 
@@ -30,7 +31,7 @@ __all__ = ["THRESHOLD_METHODS", "AbstractForeground", "ThresholdForeground", "Ba
            "as_grey"]
 
 
-def as_grey(image, where: str = "image") -> np.ndarray:
+def as_grey(image, where: str = "image") -> UInt8[np.ndarray, "H W"]:
     """A frame as (H, W) uint8 grey (colour frames are BGR, as OpenCV reads them).
 
     Raises:
@@ -57,7 +58,7 @@ class AbstractForeground(abc.ABC):
     """Maps a frame (H, W) or (H, W, 3) to a foreground mask (H, W) bool."""
 
     @abc.abstractmethod
-    def mask(self, image) -> np.ndarray:
+    def mask(self, image) -> Bool[np.ndarray, "H W"]:
         """The foreground of one frame.
 
         Raises:
@@ -127,8 +128,8 @@ class BackgroundForeground(AbstractForeground):
         open_px: radius of the opening (px).
     """
 
-    background: np.ndarray = field(repr=False)
-    noise: np.ndarray = field(repr=False)
+    background: Float[np.ndarray, "H W"] = field(repr=False)
+    noise: Float[np.ndarray, "H W"] = field(repr=False)
     k: float = 4.0
     open_px: int = 1
 

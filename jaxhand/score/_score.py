@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from jaxtyping import Bool, Float
 
 from .._errors import InputError
 from ._foreground import AbstractForeground, as_grey
@@ -103,9 +104,9 @@ class ImageEvidence:
         edge_distance_px: (H, W) float32 distance of every pixel centre to the nearest edge pixel (px).
     """
 
-    foreground: np.ndarray
-    edges: np.ndarray
-    edge_distance_px: np.ndarray
+    foreground: Bool[np.ndarray, "H W"]
+    edges: Bool[np.ndarray, "H W"]
+    edge_distance_px: Float[np.ndarray, "H W"]
 
 
 @dataclass(frozen=True)
@@ -132,7 +133,7 @@ class ImageScore:
     chamfer_score: float
     worst_link: float
     worst_link_index: int
-    link_score: np.ndarray
+    link_score: Float[np.ndarray, " n"]
     silhouette_px: int
     contour_px: int
 
@@ -161,7 +162,7 @@ def image_evidence(image, foreground: AbstractForeground | np.ndarray, config: S
     return ImageEvidence(foreground=fg, edges=edges, edge_distance_px=dist)
 
 
-def model_contour(silhouette: Silhouette, *, occluding: bool = True) -> np.ndarray:
+def model_contour(silhouette: Silhouette, *, occluding: bool = True) -> Bool[np.ndarray, "H W"]:
     """(H, W) bool: the silhouette's outline and, optionally, its occluding contours.
 
     A model pixel is on the contour when a 4-neighbour shows the background (outline), or another

@@ -29,6 +29,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Bool, Float, Int
 
 from .._errors import InputError
 from ..camera import Orthographic, Perspective
@@ -60,7 +61,7 @@ class CameraNumbers:
     scale: float = 1.0
     center: np.ndarray | None = None
 
-    def project_cam(self, p_cam: np.ndarray) -> np.ndarray:
+    def project_cam(self, p_cam: Float[np.ndarray, "*n 3"]) -> Float[np.ndarray, "*n 2"]:
         """Pixels (x, y) of camera-frame points (..., 3); perspective needs ``z > 0``."""
         if self.perspective:
             u = p_cam @ self.K.T
@@ -87,10 +88,10 @@ class Capsules:
     or forearm the model lacks); they are drawn into the silhouette and hide what lies behind them.
     """
 
-    start: np.ndarray
-    end: np.ndarray
-    radius_mm: np.ndarray
-    occluder: np.ndarray
+    start: Float[np.ndarray, "n 3"]
+    end: Float[np.ndarray, "n 3"]
+    radius_mm: Float[np.ndarray, " n"]
+    occluder: Bool[np.ndarray, " n"]
 
     @staticmethod
     def from_arrays(start, end, radius_mm, occluder=None) -> Capsules:
@@ -141,14 +142,15 @@ def capsules_from_model_batch(model: Model, qs) -> list[Capsules]:
     return [Capsules(start=start[i], end=end[i], radius_mm=radius, occluder=occ) for i in range(len(start))]
 
 
-def capsules_in_camera(capsules: Capsules, cam: CameraNumbers) -> tuple[np.ndarray, np.ndarray]:
+def capsules_in_camera(capsules: Capsules, cam: CameraNumbers
+                       ) -> tuple[Float[np.ndarray, "n 2 3"], Float[np.ndarray, " n"]]:
     """Axis ends in the camera frame, stacked as (n, 2, 3) (mm), and the mean depth (n,) (mm)."""
     ends = np.stack([capsules.start, capsules.end], 1) @ cam.R.T + cam.t
     return ends, ends[..., 2].mean(-1)
 
 
 def capsule_outlines(capsules: Capsules, cam: CameraNumbers, rim_points: int = 32, shrink_px: float = 0.0
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     ) -> tuple[Float[np.ndarray, "n m2 2"], Float[np.ndarray, " n"], Bool[np.ndarray, " n"]]:
     """The projected rims of every capsule's two end spheres.
 
     Args:
@@ -206,10 +208,10 @@ class Silhouette:
             palm capsule, or two occluders): the boundary between them is no contour in the image.
     """
 
-    mask: np.ndarray
-    label: np.ndarray
-    occluder: np.ndarray
-    adjacent: np.ndarray
+    mask: Bool[np.ndarray, "H W"]
+    label: Int[np.ndarray, "H W"]
+    occluder: Bool[np.ndarray, " n"]
+    adjacent: Bool[np.ndarray, "n n"]
 
 
 def _adjacency(capsules: Capsules) -> np.ndarray:
