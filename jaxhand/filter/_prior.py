@@ -159,7 +159,7 @@ def prior_update(state: PriorState, z: Float[Array, " n"], information: Float[Ar
 
 
 def prior_update_map(state: PriorState, q_map: Float[Array, " n"], information: Float[Array, "n n"],
-                     valid: Bool[Array, " n"] | bool = True) -> PriorState:
+                     valid: Bool[Array, " n"] | bool = True, *, jitter=1e-12) -> PriorState:
     """The posterior after a solve that already included :func:`prior_residuals`.
 
     The MAP solve returns the posterior q; the velocity follows by conditioning on it
@@ -170,12 +170,13 @@ def prior_update_map(state: PriorState, q_map: Float[Array, " n"], information: 
         q_map: the solve's estimate with the prior stacked in.
         information: the image residuals' ``J^T J / sigma^2`` at q_map (prior rows excluded).
         valid: as in :func:`prior_update`.
+        jitter: added to P_qq's diagonal (rad^2) before conditioning, as in :func:`prior_residuals`.
     """
     n = state.n
     lam = _masked(information, valid, n, state.x.dtype)
     G, K = _gain(state, lam)
     dq = jnp.asarray(q_map, state.x.dtype) - state.q
-    chol = jnp.linalg.cholesky(state.P_qq)
+    chol = jnp.linalg.cholesky(state.P_qq + jitter * jnp.eye(n, dtype=state.x.dtype))
     dv = state.P[n:, :n] @ jsl.cho_solve((chol, True), dq)
     return PriorState(x=state.x + jnp.concatenate([dq, dv]), P=_joseph(state, G, K, lam))
 
