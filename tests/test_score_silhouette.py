@@ -93,3 +93,30 @@ def test_empty_and_bad_capsules():
         Capsules.from_arrays([[0.0, 0, 0]], [[1.0, 0, 0]], [-1.0])
     with pytest.raises(ValueError, match="expected start"):
         Capsules.from_arrays([[0.0, 0]], [[1.0, 0]], [1.0])
+
+
+def _slow_contour(sil):
+    """Reference: every model pixel with a 4-neighbour (outside the image counts) that is
+    background or a capsule it does not join."""
+    lab = sil.label
+    h, w = lab.shape
+    out = np.zeros((h, w), bool)
+    for y, x in zip(*np.nonzero(lab >= 0)):
+        for dy, dx in ((0, 1), (0, -1), (1, 0), (-1, 0)):
+            yy, xx = y + dy, x + dx
+            other = lab[yy, xx] if 0 <= yy < h and 0 <= xx < w else -1
+            if other < 0 or (other != lab[y, x] and not sil.adjacent[lab[y, x], other]):
+                out[y, x] = True
+    return out
+
+
+def test_contour_matches_a_slow_reference_also_at_the_image_border():
+    m = builtin_model("hand21")
+    q = _posed(m)
+    q[m.q_lookup("little_mcp")] = -1.2  # a finger across the palm: occluding contours
+    cam = fit_camera(m)
+    cam = jh.Orthographic(R=cam.R, t=cam.t, scale=cam.scale, center=cam.center + np.array([0.0, 60.0]),
+                          size=cam.size)  # shifted down: the hand leaves the image
+    sil = rasterize(capsules_from_model(m, q), cam)
+    assert sil.mask[-1].any()  # touches the bottom border
+    np.testing.assert_array_equal(model_contour(sil), _slow_contour(sil))

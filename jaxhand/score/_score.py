@@ -168,14 +168,26 @@ def model_contour(silhouette: Silhouette, *, occluding: bool = True) -> Bool[np.
     A model pixel is on the contour when a 4-neighbour shows the background (outline), or another
     capsule that does not touch its own end to end (occluding contour; both sides are marked).
     """
-    mask = silhouette.mask
+    out = np.zeros(silhouette.mask.shape, bool)
+    rows, cols = silhouette.crop()
+    out[rows, cols] = _contour_crop(silhouette, occluding)
+    return out
+
+
+def _contour_crop(silhouette: Silhouette, occluding: bool) -> np.ndarray:
+    """:func:`model_contour` on the silhouette's box (the box has a background margin of 1 px,
+    except where it meets the image border, which counts as background as in the full image)."""
+    rows, cols = silhouette.crop()
+    mask = silhouette.mask[rows, cols]
+    if mask.size == 0:
+        return np.zeros(mask.shape, bool)
     # The outline: model pixels with a background 4-neighbour (mask minus its 4-erosion).
     cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
     inner = cv2.erode(mask.astype(np.uint8), cross, borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)
     out = mask & ~inner
     if not occluding or len(silhouette.occluder) < 2:
         return out
-    lab = silhouette.label
+    lab = silhouette.label[rows, cols]
     touch = silhouette.adjacent | np.eye(len(silhouette.occluder), dtype=bool)
     for sl_a, sl_b in (((slice(None), slice(None, -1)), (slice(None), slice(1, None))),
                        ((slice(None, -1), slice(None)), (slice(1, None), slice(None)))):
@@ -208,10 +220,12 @@ def score_silhouette(silhouette: Silhouette, evidence: ImageEvidence, config: Sc
     n_s = int(np.count_nonzero(S))
     iou = inter / union if union else 0.0
     coverage = inter / n_s if n_s else 0.0
-    contour = model_contour(silhouette, occluding=config.occluding_contours)
+    box_rows, box_cols = silhouette.crop()
+    contour = _contour_crop(silhouette, config.occluding_contours)  # on the box only
     n_c = int(np.count_nonzero(contour))
     tau = float(config.chamfer_tau_px)
-    chamfer_px = float(np.minimum(evidence.edge_distance_px[contour], tau).mean()) if n_c else tau
+    dist = evidence.edge_distance_px[box_rows, box_cols]
+    chamfer_px = float(np.minimum(dist[contour], tau).mean()) if n_c else tau
     chamfer_score = 1.0 - chamfer_px / tau
     link_score = _link_scores(silhouette, evidence, contour, config)
     judged = np.isfinite(link_score)
@@ -226,17 +240,19 @@ def score_silhouette(silhouette: Silhouette, evidence: ImageEvidence, config: Sc
 
 def _link_scores(silhouette: Silhouette, evidence: ImageEvidence, contour: np.ndarray, config: ScoreConfig
                  ) -> np.ndarray:
-    """Per capsule: mean of its visible pixels' foreground share and its contour's chamfer score."""
+    """Per capsule: mean of its visible pixels' foreground share and its contour's chamfer score
+    (``contour`` is on the silhouette's box)."""
     n = len(silhouette.occluder)
-    lab = silhouette.label
-    inside = silhouette.mask
+    rows, cols = silhouette.crop()
+    lab = silhouette.label[rows, cols]
+    inside = silhouette.mask[rows, cols]
     ids = lab[inside]
     vis = np.bincount(ids, minlength=n)
-    on = np.bincount(ids, weights=evidence.foreground[inside], minlength=n)
+    on = np.bincount(ids, weights=evidence.foreground[rows, cols][inside], minlength=n)
     tau = float(config.chamfer_tau_px)
     cids = lab[contour]
     cnt = np.bincount(cids, minlength=n)
-    dist = np.bincount(cids, weights=np.minimum(evidence.edge_distance_px[contour], tau), minlength=n)
+    dist = np.bincount(cids, weights=np.minimum(evidence.edge_distance_px[rows, cols][contour], tau), minlength=n)
     judged = ~silhouette.occluder & (vis >= config.min_link_px) & (cnt > 0)
     cover = on / np.maximum(vis, 1)
     chamfer = 1.0 - dist / np.maximum(cnt, 1) / tau

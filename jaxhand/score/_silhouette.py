@@ -206,12 +206,21 @@ class Silhouette:
         occluder: (n,) the capsules' occluder flags (from :class:`Capsules`).
         adjacent: (n, n) bool, capsules that join (end to end, as a pill chain or a finger and its
             palm capsule, or two occluders): the boundary between them is no contour in the image.
+        box: (x0, y0, x1, y1), pixel bounds (end exclusive) that hold every drawn pixel, grown by
+            one pixel and clipped to the image; (0, 0, 0, 0) when nothing is drawn. Work per pose
+            (contours, per-link counts) is done on this crop only.
     """
 
     mask: Bool[np.ndarray, "H W"]
     label: Int[np.ndarray, "H W"]
     occluder: Bool[np.ndarray, " n"]
     adjacent: Bool[np.ndarray, "n n"]
+    box: tuple[int, int, int, int] = (0, 0, 0, 0)
+
+    def crop(self) -> tuple[slice, slice]:
+        """(rows, cols) slices of :attr:`box`."""
+        x0, y0, x1, y1 = self.box
+        return slice(y0, y1), slice(x0, x1)
 
 
 def _adjacency(capsules: Capsules) -> np.ndarray:
@@ -248,8 +257,15 @@ def rasterize(capsules: Capsules, camera, *, rim_points: int = 32, shrink_px: fl
         raise InputError(f"rim_points: need >= 8, got {rim_points}")
     w, h = cam.size
     label = np.full((h, w), -1, np.int16)
+    box = (0, 0, 0, 0)
     if capsules.n:
         pts, depth, drawable = capsule_outlines(capsules, cam, rim_points, shrink_px)
+        if drawable.any():
+            lo = np.floor(pts[drawable].reshape(-1, 2).min(0)).astype(int) - 1
+            hi = np.ceil(pts[drawable].reshape(-1, 2).max(0)).astype(int) + 2
+            x0, y0 = np.clip(lo, 0, [w, h])
+            x1, y1 = np.clip(hi, 0, [w, h])
+            box = (int(x0), int(y0), int(max(x1, x0)), int(max(y1, y0)))
         fixed = np.round(pts * (1 << _SHIFT))
         # Keep OpenCV's int32 fixed point far from overflow: clamp to a frame 64x the image.
         lim = 64.0 * max(w, h) * (1 << _SHIFT)
@@ -258,4 +274,5 @@ def rasterize(capsules: Capsules, camera, *, rim_points: int = 32, shrink_px: fl
             if drawable[i]:
                 hull = cv2.convexHull(fixed[i])
                 cv2.fillConvexPoly(label, hull, int(i), lineType=cv2.LINE_8, shift=_SHIFT)
-    return Silhouette(mask=label >= 0, label=label, occluder=capsules.occluder, adjacent=_adjacency(capsules))
+    return Silhouette(mask=label >= 0, label=label, occluder=capsules.occluder, adjacent=_adjacency(capsules),
+                      box=box)
