@@ -155,7 +155,26 @@ def separation(data: Path, stride: int, trials: int, seed: int = 0) -> tuple[lis
                 row[f"{variant}.flagged_under_3px"] = float(flagged[small].mean()) if small.any() else float("nan")
             rows.append(row)
             print(f"  {label}: {len(err)} poses", flush=True)
+    rows.append(_pooled([s for s in samples if "clutter" not in s["sequence"]], "all but clutter"))
     return rows, samples
+
+
+def _pooled(samples: list[dict], label: str) -> dict:
+    """The flag shares over several sequences' poses (the fingers' scores relative to each
+    sequence's first true pose, as per sequence)."""
+    ref: dict[str, float] = {}
+    for s in samples:
+        ref.setdefault(s["sequence"], s["score_fingers"])  # each sequence's first sample is its true frame 0
+    err = np.array([s["tip_error_px"] for s in samples])
+    row = {"sequence": label, "poses": len(err), "true_score_palm_mean": float("nan"),
+           "true_score_palm_min": float("nan"), "true_score_fingers_mean": float("nan")}
+    for variant, scores in (("palm", [s["score_palm"] for s in samples]),
+                            ("fingers", [s["score_fingers"] / ref[s["sequence"]] for s in samples])):
+        conf, lost = frame_confidence(np.array(scores), 0.0, 1.0)
+        flagged = lost | (conf < 0.5)
+        row[f"{variant}.flagged_over_8px"] = float(flagged[err > 8.0].mean())
+        row[f"{variant}.flagged_under_3px"] = float(flagged[err < 3.0].mean())
+    return row
 
 
 def main(argv=None) -> int:
