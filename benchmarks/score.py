@@ -19,6 +19,14 @@
 The dev set's forward kinematics come from its ``hand.json`` body list (``tests/mujoco_hand.py``,
 until the MJCF importer exists). Run ``python benchmarks/score.py [--data DIR] [--quick]``; it
 prints tables and writes ``benchmarks/results/score.json``.
+
+Figures of 2026-12-01 (2 cores at load 8-12, so medians are 5-10x the fastest call): per pose
+rasterize 0.53 / 0.94 ms (orthographic / perspective, fastest of 200), score 0.99 / 0.81 ms,
+kinematics 0.49 / 0.37 ms; per frame evidence 1.27 / 1.07 ms. Over the 1,144 perturbed and true
+poses of the five clean sequences, 95.8 % of the poses with tips > 8 px off are flagged and
+1.2 % of those within 3 px (fingers alone, relative: 92.8 % and 0.8 %); on the clutter sequence
+the threshold foreground fails and 81 % of good poses are flagged (fingers alone, relative: 0 %
+of good poses, but only 64 % of bad ones). The confidence levels were chosen on these poses.
 """
 
 from __future__ import annotations
