@@ -8,7 +8,16 @@ from ._ghk import ghk_update as ghk_update
 from ._kalman import KalmanState as KalmanState
 from ._kalman import kalman_predict as kalman_predict
 from ._kalman import kalman_update as kalman_update
+from ._prior import PriorState as PriorState
+from ._prior import prior_information as prior_information
+from ._prior import prior_init as prior_init
+from ._prior import prior_predict as prior_predict
+from ._prior import prior_residuals as prior_residuals
+from ._prior import prior_update as prior_update
+from ._prior import prior_update_map as prior_update_map
+from ._prior import solve_information as solve_information
 from ._width import width_update as width_update
 
 __all__ = ["GHKState", "ghk_gains", "ghk_init", "ghk_predict", "ghk_update", "KalmanState", "kalman_predict",
-           "kalman_update", "width_update"]
+           "kalman_update", "width_update", "PriorState", "prior_init", "prior_predict", "prior_update",
+           "prior_update_map", "prior_residuals", "prior_information", "solve_information"]

@@ -1,0 +1,160 @@
+"""Pose priors as optional residuals (issue 13 item 6): DIP-PIP coupling and soft joint limits.
+
+Each prior is an :class:`equinox.Module` built once at the boundary from a model (entries looked up
+by name, never by literal index) and called as a pure, jit-compatible function
+``prior(q) -> residual vector``. Its squared norm is the prior's cost, so its residuals can be
+stacked under the image residuals of a solve (``jnp.concatenate([image_r, prior(q)])``); a weight
+of 0 turns a prior off without changing any shape.
+
+- :class:`DipPipCoupling`: ``r_f = w (q_dip - ratio * q_pip)`` per finger (the DIP joint flexes
+  about 2/3 as much as the PIP in natural motion; the ratio is a common anatomical approximation,
+  not a constraint of the model).
+- :class:`SoftLimits`: zero while an entry lies inside its limits widened by ``margin``, growing
+  linearly beyond (so its cost grows quadratically): ``r_i = w (relu(q_i - hi_i - m) - relu(lo_i - m - q_i))``.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from ._errors import InputError
+from .model import Model
+
+__all__ = ["DipPipCoupling", "SoftLimits", "dip_pip_coupling", "soft_limits", "stack_priors"]
+
+#: Default DIP/PIP flexion ratio (DIP about 2/3 of PIP).
+DIP_PIP_RATIO = 2.0 / 3.0
+
+
+class DipPipCoupling(eqx.Module):
+    """DIP-PIP coupling residuals, one per finger that has both joints.
+
+    Static: ``fingers`` (finger names), ``pip_index``, ``dip_index`` (entries of q).
+    Traced: ``ratio`` (unitless, DIP over PIP) and ``weight`` (1/rad: a residual of 1 is one
+    prior "sigma"; ``weight = 1 / sigma_rad``), each one value per finger.
+    """
+
+    fingers: tuple[str, ...] = eqx.field(static=True)
+    pip_index: tuple[int, ...] = eqx.field(static=True)
+    dip_index: tuple[int, ...] = eqx.field(static=True)
+    ratio: Float[Array, " fingers"] = eqx.field(converter=jnp.asarray)
+    weight: Float[Array, " fingers"] = eqx.field(converter=jnp.asarray)
+
+    def __check_init__(self):
+        n = len(self.fingers)
+        if len(self.pip_index) != n or len(self.dip_index) != n:
+            raise ValueError("DipPipCoupling: one pip and one dip index per finger")
+        if self.ratio.shape != (n,) or self.weight.shape != (n,):
+            raise ValueError(f"DipPipCoupling: ratio and weight need shape ({n},)")
+
+    def __call__(self, q: Float[Array, " nq"]) -> Float[Array, " fingers"]:
+        """Residuals ``weight * (q_dip - ratio * q_pip)`` (unitless when weight is 1/sigma)."""
+        pip = q[np.array(self.pip_index, dtype=int)]
+        dip = q[np.array(self.dip_index, dtype=int)]
+        return self.weight * (dip - self.ratio * pip)
+
+
+def dip_pip_coupling(model: Model, *, weight: float = 1.0 / np.radians(10.0), ratio: float = DIP_PIP_RATIO,
+                     fingers: tuple[str, ...] | None = None) -> DipPipCoupling:
+    """The DIP-PIP prior of ``model``: every finger ``f`` with q entries ``f_pip`` and ``f_dip``.
+
+    Args:
+        model: any model; the fingers are found by the q names (``index_pip``/``index_dip`` in the
+            built-in hands and the MuJoCo dev set's hand).
+        weight: 1 / sigma (1/rad); the default, sigma = 10 deg, lets a DIP leave the coupling by
+            10 deg at the cost of one residual unit.
+        ratio: DIP flexion over PIP flexion.
+        fingers: finger names to couple (default: every finger found).
+
+    Returns:
+        The prior (possibly with no fingers: it then returns an empty residual vector).
+
+    Raises:
+        InputError: a requested finger lacks a pip or dip entry, or weight/ratio are not finite.
+    """
+    if not (np.isfinite(weight) and weight >= 0 and np.isfinite(ratio)):
+        raise InputError(f"dip_pip_coupling: weight must be finite and >= 0 and ratio finite, got {weight!r}, "
+                         f"{ratio!r}")
+    found = [n[: -len("_pip")] for n in model.q_names if n.endswith("_pip") and n[:-4] + "_dip" in model.q_names]
+    if fingers is None:
+        fingers = tuple(found)
+    missing = [f for f in fingers if f not in found]
+    if missing:
+        raise InputError(f"dip_pip_coupling: model {model.name!r} has no '<finger>_pip'/'<finger>_dip' q entries "
+                         f"for {missing}; fingers with both: {found}")
+    dtype = model.q_lower.dtype
+    n = len(fingers)
+    return DipPipCoupling(fingers=tuple(fingers), pip_index=tuple(model.q_lookup(f + "_pip") for f in fingers),
+                          dip_index=tuple(model.q_lookup(f + "_dip") for f in fingers),
+                          ratio=jnp.full((n,), ratio, dtype), weight=jnp.full((n,), weight, dtype))
+
+
+class SoftLimits(eqx.Module):
+    """Soft joint limits: zero inside ``[lower - margin, upper + margin]``, linear beyond.
+
+    Static: ``index`` (the q entries it acts on). Traced: ``lower``, ``upper``, ``margin`` (rad or
+    mm, as the entries) and ``weight`` (1/rad or 1/mm), one value per entry.
+    """
+
+    index: tuple[int, ...] = eqx.field(static=True)
+    lower: Float[Array, " k"] = eqx.field(converter=jnp.asarray)
+    upper: Float[Array, " k"] = eqx.field(converter=jnp.asarray)
+    margin: Float[Array, " k"] = eqx.field(converter=jnp.asarray)
+    weight: Float[Array, " k"] = eqx.field(converter=jnp.asarray)
+
+    def __check_init__(self):
+        k = len(self.index)
+        for name in ("lower", "upper", "margin", "weight"):
+            if getattr(self, name).shape != (k,):
+                raise ValueError(f"SoftLimits.{name}: expected shape ({k},), got {getattr(self, name).shape}")
+
+    def __call__(self, q: Float[Array, " nq"]) -> Float[Array, " k"]:
+        """Residuals ``weight * (relu(q - upper - margin) - relu(lower - margin - q))``.
+
+        Positive above the upper limit, negative below the lower one, exactly 0 in between; the
+        residual is continuous and its square (the cost) has a continuous gradient.
+        """
+        x = q[np.array(self.index, dtype=int)]
+        above = jnp.maximum(x - self.upper - self.margin, 0.0)
+        below = jnp.maximum(self.lower - self.margin - x, 0.0)
+        return self.weight * (above - below)
+
+
+def soft_limits(model: Model, *, weight: float = 1.0 / np.radians(2.0), margin: float = 0.0,
+                names: tuple[str, ...] | None = None) -> SoftLimits:
+    """Soft limits on ``model``'s joint angles (default: every revolute q entry, base excluded).
+
+    Args:
+        model: the model whose ``q_lower``/``q_upper`` are the limits.
+        weight: 1 / sigma (1/rad); the default, 2 deg, costs one residual unit 2 deg past a limit.
+        margin: dead zone beyond each limit before the residual starts (rad), >= 0.
+        names: q names to limit (default: every entry of kind 'angle' that is not a base entry).
+
+    Raises:
+        InputError: an unknown name, a negative margin or weight.
+    """
+    if not (np.isfinite(weight) and weight >= 0 and np.isfinite(margin) and margin >= 0):
+        raise InputError(f"soft_limits: weight and margin must be finite and >= 0, got {weight!r}, {margin!r}")
+    if names is None:
+        kinds = model.q_kinds
+        idx = tuple(i for i in range(model.n_base_q, model.n_q) if kinds[i] == "angle")
+    else:
+        bad = [n for n in names if n not in model.q_names]
+        if bad:
+            raise InputError(f"soft_limits: model {model.name!r} has no q entries {bad}; valid: "
+                             f"{', '.join(model.q_names)}")
+        idx = tuple(model.q_lookup(n) for n in names)
+    sel = np.array(idx, dtype=int)
+    dtype = model.q_lower.dtype
+    k = len(idx)
+    return SoftLimits(index=idx, lower=model.q_lower[sel], upper=model.q_upper[sel],
+                      margin=jnp.full((k,), margin, dtype), weight=jnp.full((k,), weight, dtype))
+
+
+def stack_priors(priors, q: Float[Array, " nq"]) -> Float[Array, " r"]:
+    """The residuals of several priors, concatenated in order (an empty tuple gives shape (0,))."""
+    parts = [p(q) for p in priors]
+    return jnp.concatenate(parts) if parts else jnp.zeros((0,), q.dtype)

@@ -1,0 +1,49 @@
+"""The global image score (thesis ch. 7, "widening the scope of evaluation"; issue 13 item 3).
+
+Host-side (NumPy/OpenCV), after the solve: measure (image front end), estimate (solve), then
+judge (here). The tracker, once per frame:
+
+1. ``evidence = image_evidence(frame, foreground, config)``: the foreground mask and the edge
+   distance transform, shared by every hypothesis of the frame;
+2. per pose: ``sil = rasterize(capsules_from_model(model, q) + occluders, camera)`` and
+   ``s = score_silhouette(sil, evidence, config)``, or for a stack of hypotheses
+   ``score_poses(model, camera, qs, evidence, occluders=..., config=...)``;
+3. ``confidence, lost = frame_confidence(s.score, residual_rms_px, valid_share)``.
+
+- :class:`Capsules`, :func:`capsules_from_model`, :func:`rasterize`: the model's silhouette.
+- :class:`AbstractForeground` with :class:`ThresholdForeground` (dark background, fixed or Otsu),
+  :class:`BackgroundForeground` (a background image or the first frames) and
+  :class:`SkinForeground` (colour video).
+- :class:`ScoreConfig`, :class:`ImageScore`, :func:`score_frame`: IoU, coverage and chamfer in [0, 1].
+- :class:`ConfidenceConfig`, :func:`frame_confidence`: the loss rule.
+"""
+
+from ._confidence import ConfidenceConfig as ConfidenceConfig
+from ._confidence import frame_confidence as frame_confidence
+from ._foreground import AbstractForeground as AbstractForeground
+from ._foreground import BackgroundForeground as BackgroundForeground
+from ._foreground import SkinForeground as SkinForeground
+from ._foreground import ThresholdForeground as ThresholdForeground
+from ._foreground import as_grey as as_grey
+from ._score import ImageEvidence as ImageEvidence
+from ._score import ImageScore as ImageScore
+from ._score import ScoreConfig as ScoreConfig
+from ._score import image_evidence as image_evidence
+from ._score import model_contour as model_contour
+from ._score import score_frame as score_frame
+from ._score import score_poses as score_poses
+from ._score import score_silhouette as score_silhouette
+from ._silhouette import CameraNumbers as CameraNumbers
+from ._silhouette import Capsules as Capsules
+from ._silhouette import Silhouette as Silhouette
+from ._silhouette import camera_numbers as camera_numbers
+from ._silhouette import capsule_outlines as capsule_outlines
+from ._silhouette import capsules_from_model as capsules_from_model
+from ._silhouette import capsules_from_model_batch as capsules_from_model_batch
+from ._silhouette import rasterize as rasterize
+
+__all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsules_from_model",
+           "capsules_from_model_batch", "capsule_outlines",
+           "rasterize", "AbstractForeground", "ThresholdForeground", "BackgroundForeground", "SkinForeground",
+           "as_grey", "ScoreConfig", "ImageEvidence", "ImageScore", "image_evidence", "model_contour",
+           "score_silhouette", "score_frame", "score_poses", "ConfidenceConfig", "frame_confidence"]

@@ -1,0 +1,101 @@
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import CompileCounter
+
+from jaxhand.model import builtin_model
+from jaxhand.priors import dip_pip_coupling, soft_limits, stack_priors
+
+
+@pytest.fixture(scope="module")
+def hand21():
+    return builtin_model("hand21")
+
+
+def _central(f, q, h=1e-6):
+    q = np.asarray(q, float)
+    cols = []
+    for i in range(q.size):
+        e = np.zeros_like(q)
+        e[i] = h
+        cols.append((np.asarray(f(jnp.asarray(q + e))) - np.asarray(f(jnp.asarray(q - e)))) / (2 * h))
+    return np.stack(cols, -1)
+
+
+def test_dip_pip_finds_the_four_fingers_by_name(hand21):
+    p = dip_pip_coupling(hand21)
+    assert p.fingers == ("little", "ring", "middle", "index")
+    assert [hand21.q_names[i] for i in p.dip_index] == ["little_dip", "ring_dip", "middle_dip", "index_dip"]
+
+
+def test_dip_pip_golden_values(hand21):
+    p = dip_pip_coupling(hand21, weight=2.0, ratio=0.5, fingers=("index",))
+    q = np.zeros(hand21.n_q)
+    q[hand21.q_lookup("index_pip")] = -0.6
+    q[hand21.q_lookup("index_dip")] = -0.1
+    np.testing.assert_allclose(p(jnp.asarray(q)), [2.0 * (-0.1 - 0.5 * -0.6)])  # 0.4
+    q[hand21.q_lookup("index_dip")] = -0.3  # exactly half of the PIP: zero cost
+    np.testing.assert_allclose(p(jnp.asarray(q)), [0.0], atol=1e-15)
+
+
+def test_dip_pip_unknown_finger_is_an_error(hand21):
+    with pytest.raises(ValueError, match="thumb"):
+        dip_pip_coupling(hand21, fingers=("thumb",))
+
+
+def test_soft_limits_zero_inside_linear_outside(hand21):
+    p = soft_limits(hand21, weight=3.0, margin=0.1, names=("index_mcp", "index_pip"))
+    lo, hi = np.asarray(hand21.q_lower), np.asarray(hand21.q_upper)
+    i, j = hand21.q_lookup("index_mcp"), hand21.q_lookup("index_pip")
+    q = np.asarray(hand21.q_default).copy()
+    np.testing.assert_array_equal(p(jnp.asarray(q)), [0.0, 0.0])
+    q[i] = hi[i] + 0.05  # inside the margin: still zero
+    q[j] = lo[j] - 0.35  # 0.25 past the margin below
+    np.testing.assert_allclose(p(jnp.asarray(q)), [0.0, -3.0 * 0.25])
+    q[i] = hi[i] + 0.3
+    np.testing.assert_allclose(p(jnp.asarray(q))[0], 3.0 * 0.2)
+
+
+def test_soft_limits_default_covers_every_joint_angle():
+    m = builtin_model("hand27")
+    p = soft_limits(m)
+    assert len(p.index) == m.n_q - 7  # no base entries
+    assert all(m.q_kinds[i] == "angle" for i in p.index)
+
+
+@pytest.mark.parametrize("name", ["hand21", "hand27"])
+def test_prior_jacobians_match_central_differences(name):
+    m = builtin_model(name)
+    priors = (dip_pip_coupling(m), soft_limits(m, margin=0.05))
+    rng = np.random.default_rng(3)
+    lo, hi = np.asarray(m.q_lower), np.asarray(m.q_upper)
+    span = np.where(np.isfinite(hi - lo) & (hi - lo < 10), hi - lo, 1.0)
+    # Points inside, and well outside, the limits (away from the kinks at limit +- margin).
+    for scale in (0.0, 0.4):
+        q = rng.uniform(lo + 0.1 * span, hi - 0.1 * span) if scale == 0 else \
+            np.where(rng.uniform(size=m.n_q) < 0.5, lo - scale * span, hi + scale * span)
+        q = np.where(np.asarray(m.is_angle), q, np.asarray(m.q_default))
+
+        def f(x):
+            return stack_priors(priors, x)
+
+        J = jax.jit(jax.jacfwd(f))(jnp.asarray(q))
+        np.testing.assert_allclose(J, _central(f, q), atol=1e-7)
+        if scale > 0:
+            assert np.abs(np.asarray(J)).sum() > 0
+
+
+def test_priors_are_jit_compatible_and_retrace_free_for_new_weights(hand21):
+    f = eqx.filter_jit(lambda p, q: p(q))
+    q = jnp.asarray(hand21.q_default) - 0.3
+    f(dip_pip_coupling(hand21, weight=1.0), q)
+    with CompileCounter() as c:
+        b = f(dip_pip_coupling(hand21, weight=5.0), q)  # traced weight: same program
+    assert c.count == 0
+    np.testing.assert_allclose(b, 5.0 * (-0.3 + 2 / 3 * 0.3) * np.ones(4))
+
+
+def test_stack_priors_empty():
+    assert stack_priors((), jnp.zeros(3)).shape == (0,)
