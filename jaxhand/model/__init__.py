@@ -1,4 +1,4 @@
-"""Kinematic models: modified-DH trees, built-in hands and model files."""
+"""Kinematic models: modified-DH trees, built-in hands, model files, MJCF/URDF import, mirroring."""
 
 from ._file import FORMAT_VERSION as FORMAT_VERSION
 from ._file import load_model as load_model
