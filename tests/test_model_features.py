@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import CompileCounter
 
 import jaxhand as jh
 from jaxhand.cli import main
@@ -76,6 +77,20 @@ def test_pre_transform_is_applied_before_the_dh_transform(rotation):
     np.testing.assert_allclose(frame_poses(m, q), T_pre @ np.asarray(frame_poses(plain, q)), atol=1e-12)
     # Golden: at q = 0 the tip (40 + 24 + 20 mm along x of index_mcp) is at T_pre (84, 0, 0).
     np.testing.assert_allclose(jh.forward(m, jnp.zeros(3)).tips[0], [1.0, 2.0 + 84.0, 3.0], atol=1e-12)
+
+
+def test_imported_models_compile_once_per_structure():
+    """Fixed transforms, occluders and mirroring are traced numbers: same structure, same program."""
+    m = load_mjcf(HAND_XML)
+    others = [m.with_lengths(1.1), mirror_model(m, name=m.name)]  # handedness "none" stays "none"
+    assert all(o.structure() == m.structure() for o in others)
+    q = jnp.asarray(m.q_default)
+    occluder_pills(m, jh.forward(m, q))
+    with CompileCounter() as counter:
+        for other in others:
+            for x in jh.random_q(m, np.random.default_rng(1), 3):
+                jh.forward(other, jnp.asarray(x))
+    assert counter.count == 0
 
 
 def test_pre_transform_jacobian_matches_finite_differences():
