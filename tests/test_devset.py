@@ -45,7 +45,8 @@ def test_devset_model_tips_land_on_the_truth_tips():
     seq = load_devset(DEVSET / "wave_two_cameras")
     t, m = seq.truth, seq.model
     tips = jax.vmap(lambda q: pose(m, q))(t.q).tips
-    idx = [t.point_index(f"{n.split('_')[0]}_tip") for n in m.tip_names]
+    idx = t.tip_points(m)
+    assert [t.point_names[i] for i in idx] == ["thumb_tip", "index_tip", "middle_tip", "ring_tip", "little_tip"]
     for c, cam in enumerate(seq.cameras):
         np.testing.assert_allclose(np.asarray(cam.project(tips)[0]), t.points_px[c][:, idx], atol=1e-3)
 

@@ -8,12 +8,22 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import CompileCounter
 
 import jaxhand as jh
 from jaxhand.cli import main
 from jaxhand.io import load_devset
 from jaxhand.kinematics import all_pills, dh_transform, frame_poses, occluder_pills
-from jaxhand.model import builtin_spec, load_mjcf, load_urdf, mirror_model, mirror_q, model_from_dict, model_to_dict
+from jaxhand.model import (
+    builtin_spec,
+    load_mjcf,
+    load_urdf,
+    mirror_model,
+    mirror_q,
+    model_from_dict,
+    model_to_dict,
+    occluders_as_links,
+)
 
 HAND_XML = Path(__file__).resolve().parents[1] / "data" / "mujoco" / "models" / "hand.xml"
 
@@ -69,6 +79,20 @@ def test_pre_transform_is_applied_before_the_dh_transform(rotation):
     np.testing.assert_allclose(jh.forward(m, jnp.zeros(3)).tips[0], [1.0, 2.0 + 84.0, 3.0], atol=1e-12)
 
 
+def test_imported_models_compile_once_per_structure():
+    """Fixed transforms, occluders and mirroring are traced numbers: same structure, same program."""
+    m = load_mjcf(HAND_XML)
+    others = [m.with_lengths(1.1), mirror_model(m, name=m.name)]  # handedness "none" stays "none"
+    assert all(o.structure() == m.structure() for o in others)
+    q = jnp.asarray(m.q_default)
+    occluder_pills(m, jh.forward(m, q))
+    with CompileCounter() as counter:
+        for other in others:
+            for x in jh.random_q(m, np.random.default_rng(1), 3):
+                jh.forward(other, jnp.asarray(x))
+    assert counter.count == 0
+
+
 def test_pre_transform_jacobian_matches_finite_differences():
     m = load_mjcf(HAND_XML)
     q = jnp.asarray(jh.random_q(m, np.random.default_rng(4), margin=0.1))
@@ -114,6 +138,28 @@ def test_occluders_move_with_their_frame_and_carry_no_features():
     assert occluder_pills(jh.builtin_model("hand21"), jh.forward(jh.builtin_model("hand21"),
                                                                   jh.builtin_model("hand21").q_default)).start.shape \
         == (0, 3)
+
+
+def test_occluders_as_links_keeps_the_geometry():
+    m = load_mjcf(HAND_XML)
+    m2 = occluders_as_links(m, ["forearm", "palm_middle"], tips=False)
+    assert m2.link_names == m.link_names + ("forearm", "palm_middle") and m2.tip_names == m.tip_names
+    assert m2.occluder_names == ("palm_index", "palm_ring", "palm_little") and m2.q_names == m.q_names
+    q = jh.random_q(m, np.random.default_rng(8))
+    p, p2 = jh.forward(m, q), jh.forward(m2, q)
+    occ = occluder_pills(m, p)
+    np.testing.assert_allclose(p2.link_start[-2:], np.asarray(occ.start)[[0, 2]], atol=1e-12)
+    np.testing.assert_allclose(p2.link_end[-2:], np.asarray(occ.end)[[0, 2]], atol=1e-12)
+    np.testing.assert_allclose(m2.link_radius_mm[-2:], [23.32, 12.19])
+    np.testing.assert_array_equal(p2.tips, p.tips)
+    assert occluders_as_links(m).n_occluders == 0
+    with pytest.raises(jh.InputError, match="no occluder 'palm'; valid: forearm"):
+        occluders_as_links(m, ["palm"])
+
+
+def test_hand_clutter_xml_skips_the_background_plane():
+    clutter = load_mjcf(HAND_XML.with_name("hand_clutter.xml"))
+    assert clutter.structure() == load_mjcf(HAND_XML).structure()
 
 
 def test_with_lengths_scales_fixed_transforms_and_occluders():

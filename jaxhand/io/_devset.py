@@ -93,6 +93,17 @@ class Truth:
         except ValueError:
             raise KeyError(f"{self.sequence}: no point {name!r}; valid: {', '.join(self.point_names)}") from None
 
+    def tip_points(self, model: Model) -> np.ndarray:
+        """Index into ``point_names`` of each of ``model``'s tips, in ``model.tip_names`` order.
+
+        The dev set names a finger's tip point ``<finger>_tip`` and its links ``<finger>_...``
+        (``index_distal``), so a tip link's finger is the first word of its name.
+
+        Raises:
+            KeyError: a tip whose finger has no ``_tip`` point.
+        """
+        return np.array([self.point_index(f"{n.split('_')[0]}_tip") for n in model.tip_names], dtype=int)
+
 
 @dataclasses.dataclass(frozen=True)
 class DevSequence:

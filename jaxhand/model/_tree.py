@@ -29,7 +29,7 @@ import numpy as np
 from ._file import FORMAT_VERSION, _clean, _deg, model_from_dict
 from ._model import Model
 
-__all__ = ["TreeBuilder", "Joint", "Pill"]
+__all__ = ["TreeBuilder", "Joint", "Pill", "occluders_as_links"]
 
 _TOL = 1e-9
 
@@ -192,3 +192,45 @@ def _axis_frame_x(d) -> np.ndarray:
     """R with x = ``d`` (a unit vector)."""
     R = _axis_frame(d, None)  # z = d
     return np.stack([R[:, 2], R[:, 0], R[:, 1]], axis=1)
+
+
+def occluders_as_links(model: Model, names: list[str] | tuple[str, ...] | None = None, *,
+                       tips: bool = False) -> Model:
+    """The model with occluder pills turned into links (which carry link features).
+
+    Each named occluder (default: all) becomes a link on a new fixed frame ``<name>_pill`` hung
+    off its frame, with its origin at the occluder's start and its x axis along the occluder;
+    the link keeps the occluder's name and radius and is a tip if ``tips``. Existing frames, q
+    entries and links keep their indices (the new links come last); the structure changes, so
+    the result compiles its own programs. Zero-length occluders (spheres) cannot become links.
+
+    Raises:
+        InputError: an unknown occluder name, or a zero-length occluder.
+    """
+    from .._errors import InputError
+    from ._file import model_to_dict
+
+    names = list(model.occluder_names if names is None else names)
+    for n in names:
+        if n not in model.occluder_names:
+            raise InputError(f"model {model.name!r} has no occluder {n!r}; valid: "
+                             f"{', '.join(model.occluder_names) or '(none)'}")
+    d = model_to_dict(model)
+    keep = []
+    for oc in d.get("occluders", []):
+        if oc["name"] not in names:
+            keep.append(oc)
+            continue
+        s, e = np.asarray(oc["start_mm"], float), np.asarray(oc["end_mm"], float)
+        length = float(np.linalg.norm(e - s))
+        if length <= _TOL:
+            raise InputError(f"occluder {oc['name']!r} has zero length (a sphere) and cannot become a link")
+        b = TreeBuilder(name=model.name)
+        b._frame(f"{oc['name']}_pill", oc["frame"], _trans(s) @ _rot(_axis_frame_x((e - s) / length)))
+        b.frames[-1]["link"] = {"name": oc["name"], "axis": "x", "length_mm": _clean(length),
+                                "radius_mm": oc["radius_mm"], "tip": tips}
+        d["frames"] += b.frames
+    d["occluders"] = keep
+    if not keep:
+        del d["occluders"]
+    return model_from_dict(d, source=f"occluders_as_links({model.name})")
