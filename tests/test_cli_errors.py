@@ -46,3 +46,22 @@ def test_pose_in_radians_is_taken_but_warned_about():
     assert np.allclose(q, np.radians(-35.0))
     with pytest.raises(jh.InputError, match=r"--init: expected 6 values for 'two_fingers' \(.*\), got 2"):
         parse_pose(model, "1,2")
+
+
+def test_unknown_model_suffix_names_the_readable_ones(tmp_path, capsys):
+    (tmp_path / "hand.yaml").write_text("name: x")
+    assert main(["models", str(tmp_path / "hand.yaml")]) == 2
+    err = _one_line_error(capsys, "models")
+    assert "not a model file jaxhand reads (model files are .toml, .json, MJCF .xml or .urdf)" in err
+
+
+@pytest.mark.parametrize("limits", ["[-inf, inf]", "[-90.0, nan]"])
+def test_infinite_or_nan_limits_are_refused_on_load(tmp_path, limits):
+    text = jh.model_to_dict(jh.builtin_model("planar_rr"))
+    path = tmp_path / "m.toml"
+    jh.save_model(jh.model_from_dict(text), path)
+    lines = path.read_text().splitlines()
+    lines = [f"limits = {limits}" if ln.startswith("limits = ") else ln for ln in lines]
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(jh.ModelFileError, match=r"field 'limits' must be finite.*\[-180, 180\] deg"):
+        jh.load_model(path)

@@ -1,5 +1,6 @@
 """Kinematic models: modified-DH trees, built-in hands, model files, MJCF/URDF import, mirroring."""
 
+from .._errors import ModelFileError
 from ._file import FORMAT_VERSION as FORMAT_VERSION
 from ._file import load_model as load_model
 from ._file import model_from_dict as model_from_dict
@@ -31,4 +32,7 @@ def get_model(name_or_path) -> Model:
     p = Path(name_or_path)
     if p.suffix in (".toml", ".json", ".xml", ".urdf"):
         return load_model(p)
+    if p.suffix or p.exists():
+        raise ModelFileError(f"{p}: not a model file jaxhand reads (model files are .toml, .json, MJCF .xml or "
+                             f".urdf) nor a built-in model ({', '.join(builtin_names())})")
     return builtin_model(str(name_or_path))  # raises the "unknown model" error listing built-ins

@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import ModelFileError
-from ._file import quaternion_to_matrix
 from ._model import HANDEDNESS, Model
+from ._spec import quaternion_to_matrix
 from ._tree import Joint, Pill, TreeBuilder, _rot, _trans, _unit
 
 __all__ = ["load_mjcf"]
