@@ -5,28 +5,25 @@ import numpy as np
 import pytest
 import shapely
 
-from jaxhand.image import (
-    SEARCH_NAMES,
+from jaxhand.image import SEARCH_NAMES, SearchConfig
+from jaxhand.image import SamplerConfig as SC
+from jaxhand.image.internal import (
     Edges,
     Profiles,
-    SearchConfig,
     as_grey,
-    pill_outlines,
-    place_link_samplers,
-    sample_profiles,
-    search_named,
-    window_masks,
-)
-from jaxhand.image import SamplerConfig as SC
-from jaxhand.image.searches._common import (
     correlate_shifts,
     derivative_kernel,
     gaussian_derivative,
     parabola_vertex,
+    pill_outlines,
+    place_link_samplers,
+    sample_profiles,
+    search_named,
     simple_derivative,
     width_template,
+    window_masks,
+    wssd_surface,
 )
-from jaxhand.image.searches._wssd import wssd_surface
 
 
 def _image(seed=0, h=30, w=40):

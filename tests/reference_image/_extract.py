@@ -29,6 +29,7 @@ from jaxhand.camera import Perspective, as_rig
 from jaxhand.features import Features
 from jaxhand.kinematics import project_pose, validate_q
 from jaxhand.model import Model
+
 from ._config import ImageConfig
 from ._lines import axial_line, line_params, offset_towards, ransac_pca
 from ._regression import plls

@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from jaxhand._errors import InputError
+
 from ._common import Edges, Profiles
 from ._derivative import derivative_peaks
 from ._gaussian import gaussian_peaks
