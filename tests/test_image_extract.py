@@ -397,6 +397,23 @@ def test_bad_images_raise_input_error(hand, image, match):
         extract_features([image], m, cam, q)
 
 
+def test_float_image_in_unit_range_raises_input_error(hand):
+    # A [0, 1]-scaled float image would be read as nearly black and give no features at all: it
+    # is refused with what to do; the same image on the 0-255 scale gives the uint8 features.
+    m, cam, q, img = hand
+    unit = img.astype(np.float32) / 255
+    for call in (lambda im: extract_features(im, m, cam, q), lambda im: capture_templates(im, m, cam, q)):
+        with pytest.raises(jh.InputError, match=r"images\[0\]: a float image with values in \[0, 1\].*\* 255"):
+            call(unit)
+    f_unit, _ = extract_features(unit * 255, m, cam, q, ImageConfig(method="gaussian"))
+    f_u8, _ = extract_features(img, m, cam, q, ImageConfig(method="gaussian"))
+    assert np.asarray(f_unit[0].line_valid).sum() > 5
+    np.testing.assert_allclose(np.asarray(f_unit[0].lines), np.asarray(f_u8[0].lines), atol=1e-3)
+    # an all-black float frame is not mistaken for one (it holds no features either way)
+    feats, _ = extract_features(np.zeros_like(unit), m, cam, q)
+    assert not np.asarray(feats[0].line_valid).any()
+
+
 def test_bad_arguments_raise_input_error(hand):
     m, cam, q, img = hand
     with pytest.raises(jh.InputError, match=r"images\[1\]"):

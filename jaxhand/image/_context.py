@@ -5,7 +5,6 @@ point tests on its outlines; also the entry points' common input checks."""
 from __future__ import annotations
 
 import dataclasses
-import functools
 from collections.abc import Callable, Sequence
 
 import jax.numpy as jnp
@@ -20,7 +19,7 @@ from ._diagnostics import Clock
 from ._sampling import as_grey, sample_profiles
 from ._state import ImageState
 from ._trackers import LinkSamplers, place_link_samplers
-from ._visibility import Visibility, compute_visibility, convex_edges, inside_polygons, same_chain, window_masks
+from ._visibility import Visibility, compute_visibility, inside_polygons, same_chain, window_masks
 
 __all__ = ["CameraContext", "Observation", "observe", "end_radii", "off_other_links", "against_background",
            "as_images", "prepare", "matching_state", "layout"]
@@ -74,11 +73,6 @@ class Observation:
     usable: np.ndarray | None
     window: np.ndarray | None
 
-    @functools.cached_property
-    def outline_edges(self):
-        """:func:`convex_edges` of the outlines, computed once for every point test of this view."""
-        return convex_edges(self.visibility.outlines)
-
 
 def end_radii(camera, depth: np.ndarray, radius: np.ndarray, ok: np.ndarray) -> np.ndarray:
     """(links, 2) the radius in pixels of each link end's circle: a perspective camera shows each
@@ -122,7 +116,9 @@ def off_other_links(obs: Observation, points: np.ndarray, links: np.ndarray | No
     L = len(outlines)
     links = np.arange(L) if links is None else np.asarray(links, int)
     pts = np.asarray(points, float)
-    inside = inside_polygons(outlines, pts, edges=obs.outline_edges)  # (links, ..., L): each point, each outline
+    # (links, ..., L): each point, each outline; shapely's prepared predicate (edges=None) is
+    # faster here than inside_polygons' NumPy edge test (measured with benchmarks/features.py).
+    inside = inside_polygons(outlines, pts, edges=None)
     own = np.arange(L) == links.reshape((-1,) + (1,) * (pts.ndim - 1))
     return ~np.any(inside & ~own, axis=-1)
 

@@ -42,7 +42,7 @@ def _same_bits(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _rows(tree, at):
-    """A samplers or visibility dataclass with the rows ``at`` of each array field."""
+    """A samplers dataclass with the rows ``at`` of each array field."""
     return type(tree)(**{f.name: (None if getattr(tree, f.name) is None else getattr(tree, f.name)[at])
                          for f in dataclasses.fields(tree)})
 
@@ -114,13 +114,13 @@ def search_turns(ctx: CameraContext, links: np.ndarray, qs: Sequence[np.ndarray]
     pts = samplers.points[searched]
     values, usable = sample_profiles(ctx.grey, pts, config.samplers.interpolation)
     clock.lap("sampling")
-    window = window_masks(vis.windows[searched], pts) & usable
+    window = window_masks(vis.rows(searched).windows, pts) & usable
     clock.lap("visibility")
 
     def observe_turn(i: int) -> Observation:
         at = rows[i]
         return Observation(start=start[at], end=end[at], tips=tips[i], samplers=_rows(samplers, at),
-                           visibility=dataclasses.replace(_rows(vis, at), order=None), values=None, usable=None,
+                           visibility=vis.rows(at), values=None, usable=None,
                            window=None)
 
     clear = None
@@ -128,7 +128,7 @@ def search_turns(ctx: CameraContext, links: np.ndarray, qs: Sequence[np.ndarray]
         reach = config.visibility.background_reach
         clear = np.stack([against_background(observe_turn(i), reach)[k] for i, k in enumerate(links)])
     batch = Observation(start=start[searched], end=end[searched], tips=None, samplers=_rows(samplers, searched),
-                        visibility=dataclasses.replace(_rows(vis, searched), order=None), values=values,
+                        visibility=vis.rows(searched), values=values,
                         usable=usable, window=window)
     sub = dataclasses.replace(ctx, templates=ctx.templates[links], template_mask=ctx.template_mask[links])
     return Turns(links=links, view=search_view(sub, batch, boundary_clear=clear, tips=False), observe=observe_turn)
