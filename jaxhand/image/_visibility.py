@@ -288,8 +288,16 @@ def inside_polygons(polygons: np.ndarray, points: np.ndarray, *, tol: float = 1e
     y = np.where(finite, flat[:, 1], 0.0)
     edges = convex_edges(geoms) if edges is False else edges
     if edges is None:
-        shapely.prepare(geoms)
-        out = shapely.contains_xy(geoms[None, :], x[:, None], y[:, None]) & finite[:, None]
+        # Only the pairs whose point lies within the polygon's bounding box are asked of shapely;
+        # a point outside it is outside the polygon (and an empty polygon's NaN box holds none).
+        b = shapely.bounds(geoms)
+        cand = ((x[:, None] >= b[None, :, 0]) & (x[:, None] <= b[None, :, 2]) & (y[:, None] >= b[None, :, 1])
+                & (y[:, None] <= b[None, :, 3]) & finite[:, None])
+        out = np.zeros(cand.shape, bool)
+        p, g = np.nonzero(cand)
+        if len(p):
+            shapely.prepare(geoms)
+            out[p, g] = shapely.contains_xy(geoms[g], x[p], y[p])
         return out.reshape(lead + (len(geoms),))
     a, e, present = edges
     # cross(e, p - a) > 0 on the interior side of every edge: (points, n, V).
