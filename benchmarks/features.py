@@ -32,7 +32,8 @@ with one ``cv2.remap`` per profile (a Python loop) instead of one call for the f
 Front end vs reference: the same clean hand21 frames through :func:`extract_features` and through
 the frozen copy of the front end before its split and speed-up (``tests/reference_image``), calls
 interleaved, for the wssd, gaussian and imwplls searches: median wall and CPU ms per frame, the
-ratio reference / new, and whether every feature came out bit for bit the same.
+ratio reference / new, and whether every feature came out the same (lines, tips and masks bit for bit,
+weights to 1e-12 relative).
 
 Run ``python benchmarks/features.py`` (writes ``benchmarks/results/features.json``),
 ``python benchmarks/features.py --quick`` for a smoke run (no JSON unless ``--out`` is given), or
@@ -227,8 +228,10 @@ def timing(quick: bool) -> tuple[list[dict], dict]:
 
 
 def _same_features(a, b) -> bool:
-    names = ("lines", "line_valid", "line_weight", "tips", "tip_valid", "tip_weight")
+    """Lines, tips and masks bit for bit, weights to 1e-12 relative (tests/test_image_reference.py)."""
+    names = ("lines", "line_valid", "tips", "tip_valid", "tip_weight")
     return all(np.array_equal(np.asarray(getattr(x, n)), np.asarray(getattr(y, n)))
+               and np.allclose(np.asarray(x.line_weight), np.asarray(y.line_weight), rtol=1e-12, atol=0)
                for x, y in zip(a, b, strict=True) for n in names)
 
 
