@@ -246,7 +246,7 @@ def test_as_grey_converts_once():
     bgr[..., 2] = 255  # pure red
     g = as_grey(bgr)
     assert g.dtype == np.float32 and g.shape == (4, 5) and np.allclose(g, round(0.299 * 255))
-    assert as_grey(np.ones((4, 5, 1), np.float64)).shape == (4, 5)
+    assert as_grey(np.full((4, 5, 1), 7.0)).shape == (4, 5)  # (all ones would read as a [0, 1] image)
 
 
 def test_wssd_with_a_partial_template():

@@ -117,7 +117,7 @@ def off_other_links(obs: Observation, points: np.ndarray, links: np.ndarray | No
     links = np.arange(L) if links is None else np.asarray(links, int)
     pts = np.asarray(points, float)
     # (links, ..., L): each point, each outline; shapely's prepared predicate (edges=None) is
-    # faster here than inside_polygons' NumPy edge test (measured with benchmarks/features.py).
+    # faster here than the NumPy edge test of inside_polygons.
     inside = inside_polygons(outlines, pts, edges=None)
     own = np.arange(L) == links.reshape((-1,) + (1,) * (pts.ndim - 1))
     return ~np.any(inside & ~own, axis=-1)
