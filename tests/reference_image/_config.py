@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from jaxhand._errors import InputError
+from jaxhand import InputError
 
 __all__ = ["SamplerConfig", "SearchConfig", "VisibilityConfig", "LineConfig", "TipConfig", "ImageConfig",
            "INTERPOLATIONS", "POLARITIES"]

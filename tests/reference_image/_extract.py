@@ -24,7 +24,7 @@ from collections.abc import Callable, Sequence
 import jax.numpy as jnp
 import numpy as np
 
-from jaxhand._errors import InputError
+from jaxhand import InputError
 from jaxhand.camera import Perspective, as_rig
 from jaxhand.features import Features
 from jaxhand.kinematics import project_pose, validate_q

@@ -12,7 +12,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from jaxhand._errors import InputError
+from jaxhand import InputError
 
 __all__ = ["as_grey", "sample_profiles", "INTERPOLATION_FLAGS"]
 

@@ -9,7 +9,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from jaxhand._errors import InputError
+from jaxhand import InputError
 
 __all__ = ["ImageState"]
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from jaxhand._errors import InputError
+from jaxhand import InputError
 
 from ._common import Edges, Profiles
 from ._derivative import derivative_peaks
