@@ -29,8 +29,16 @@ threads set to 1), with the first call (which compiles the jitted kinematics) re
 and the median stage split from :attr:`Diagnostics.timings_s`. The peer: sampling every profile
 with one ``cv2.remap`` per profile (a Python loop) instead of one call for the frame.
 
-Run ``python benchmarks/features.py`` (writes ``benchmarks/results/features.json``) or
-``python benchmarks/features.py --quick`` for a smoke run (no JSON unless ``--out`` is given).
+Front end vs reference: the same clean hand21 frames through :func:`extract_features` and through
+the frozen copy of the front end before its split and speed-up (``tests/reference_image``), calls
+interleaved, for the wssd, gaussian and imwplls searches: median wall and CPU ms per frame, the
+ratio reference / new, and whether every feature came out the same (lines, tips and masks bit for bit,
+weights to 1e-12 relative).
+
+Run ``python benchmarks/features.py`` (writes ``benchmarks/results/features.json``),
+``python benchmarks/features.py --quick`` for a smoke run (no JSON unless ``--out`` is given), or
+``python benchmarks/features.py --vs-reference`` for the front-end comparison alone (writes
+``benchmarks/results/features_vs_reference.json``).
 """
 
 from __future__ import annotations
@@ -43,6 +51,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # o
 import argparse  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
+import time  # noqa: E402
 from functools import partial  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -52,22 +61,19 @@ import numpy as np  # noqa: E402
 import shapely  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the reference front end
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # this checkout's jaxhand
 
 from _common import REPO, RESULTS, environment, first_call_seconds, median_seconds, time_call, write_json  # noqa: E402
 
 import jaxhand as jh  # noqa: E402
-from jaxhand.image import (  # noqa: E402
-    SEARCH_NAMES,
-    ImageConfig,
-    as_grey,
-    capture_templates,
-    extract_features,
-    sample_profiles,
-)
-from jaxhand.image._sampling import INTERPOLATION_FLAGS  # noqa: E402
+from jaxhand.image import SEARCH_NAMES, ImageConfig, capture_templates, extract_features  # noqa: E402
+from jaxhand.image.internal import INTERPOLATION_FLAGS, as_grey, sample_profiles  # noqa: E402
 from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402
 
 DEFAULT_OUT = RESULTS / "features.json"
+VS_REFERENCE_OUT = RESULTS / "features_vs_reference.json"
+REFERENCE_METHODS = ("wssd", "gaussian", "imwplls")
 FRONT_LIGHT = (0.0, 0.0, -1.0)
 OBLIQUE_LIGHT = RenderConfig().light_dir
 NOISE_SIGMA = 4.0
@@ -221,6 +227,77 @@ def timing(quick: bool) -> tuple[list[dict], dict]:
     return rows, peer
 
 
+def _same_features(a, b) -> bool:
+    """Lines, tips and masks bit for bit, weights to 1e-12 relative (tests/test_image_reference.py)."""
+    names = ("lines", "line_valid", "tips", "tip_valid", "tip_weight")
+    return all(np.array_equal(np.asarray(getattr(x, n)), np.asarray(getattr(y, n)))
+               and np.allclose(np.asarray(x.line_weight), np.asarray(y.line_weight), rtol=1e-12, atol=0)
+               for x, y in zip(a, b, strict=True) for n in names)
+
+
+def versus_reference(quick: bool) -> list[dict]:
+    """hand21 ms per frame of the front end and of its frozen reference copy, calls interleaved."""
+    import reference_image
+
+    seq = make_preset("full_hand_spread_flex", size=(320, 240))
+    m, cam = seq.model, seq.cameras[0]
+    idx = np.linspace(0, seq.n_frames - 1, 4 if quick else 12).round().astype(int)
+    cfg = RenderConfig(antialias=5, light_dir=FRONT_LIGHT)
+    images = [render_frame(m, cam, seq.q[k], cfg).image for k in idx]
+    repeats = 2 if quick else 5
+    fronts = {"new": (extract_features, capture_templates, ImageConfig),
+              "reference": (reference_image.extract_features, reference_image.capture_templates,
+                            reference_image.ImageConfig)}
+    rows = []
+    for method in REFERENCE_METHODS:
+        calls, same = {}, True
+        for name, (extract, capture, make_config) in fronts.items():
+            config = make_config(method=method)
+            state = capture(images[0], m, cam, seq.q[idx[0]], config)
+            calls[name] = [partial(extract, images[j], m, cam, seq.q[k], config, state) for j, k in enumerate(idx)]
+            calls[name][0]()  # compile the kinematics and warm the caches
+        wall = {name: [] for name in fronts}
+        cpu = {name: [] for name in fronts}
+        for _ in range(repeats):
+            for j in range(len(idx)):
+                outs = {}
+                for name in fronts:  # new and reference alternate, so load changes hit both alike
+                    c0, (t, out) = time.process_time(), time_call(calls[name][j])
+                    cpu[name].append(time.process_time() - c0)
+                    wall[name].append(t)
+                    outs[name] = out[0]
+                same &= _same_features(outs["new"], outs["reference"])
+        row = {"method": method, "frames": int(len(idx)), "repeats": repeats, "identical_features": bool(same)}
+        for name in fronts:
+            row[f"{name}_median_ms"] = 1e3 * statistics.median(wall[name])
+            row[f"{name}_cpu_median_ms"] = 1e3 * statistics.median(cpu[name])
+        row["reference_over_new"] = row["reference_median_ms"] / row["new_median_ms"]
+        row["reference_over_new_cpu"] = row["reference_cpu_median_ms"] / row["new_cpu_median_ms"]
+        rows.append(row)
+    return rows
+
+
+def print_versus_reference(rows: list[dict]) -> None:
+    print("\nfront end vs its reference copy, hand21 320x240, one camera (median ms per frame; wall and CPU)")
+    print(f"{'method':10s} {'new':>8s} {'ref':>8s} {'ref/new':>8s} {'new cpu':>8s} {'ref cpu':>8s} {'ref/new':>8s} "
+          f"{'same':>5s}")
+    for r in rows:
+        print(f"{r['method']:10s} {r['new_median_ms']:8.2f} {r['reference_median_ms']:8.2f} "
+              f"{r['reference_over_new']:8.2f} {r['new_cpu_median_ms']:8.2f} {r['reference_cpu_median_ms']:8.2f} "
+              f"{r['reference_over_new_cpu']:8.2f} {'yes' if r['identical_features'] else 'NO':>5s}")
+
+
+def _reference_metrics(rows: list[dict]) -> dict:
+    out = {}
+    for r in rows:
+        key = f"features.hand21.320x240.{r['method']}"
+        out[f"{key}.front_end_median_ms"] = r["new_median_ms"]
+        out[f"{key}.reference_median_ms"] = r["reference_median_ms"]
+        out[f"{key}.reference_over_new"] = r["reference_over_new"]
+        out[f"{key}.identical_to_reference"] = r["identical_features"]
+    return out
+
+
 HEADER = (f"{'method':18s} {'condition':12s} {'links':>5s} {'valid':>6s} {'ang med':>8s} {'ang p95':>8s} "
           f"{'off med':>8s} {'off p95':>8s} {'<=1/1':>6s} {'tips':>5s} {'tip med':>8s}")
 
@@ -276,22 +353,33 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a few frames per sequence; no JSON unless --out")
     parser.add_argument("--out", type=Path, default=None, help=f"JSON path (default {DEFAULT_OUT.relative_to(REPO)})")
+    parser.add_argument("--vs-reference", action="store_true",
+                        help=f"only the front end vs its reference copy (JSON: {VS_REFERENCE_OUT.relative_to(REPO)})")
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
     env = bench_environment()
     print(f"feature benchmark: {env['cpu']} ({env['cpu_count']} cores, load {env['load_average_1min_start']:.1f}), "
           f"1 thread, opencv {env['opencv']}, shapely {env['shapely']}, "
           f"commit {env['commit']}{' (dirty)' if env['dirty'] else ''}")
-    print(HEADER)
-    accuracy = evaluate(args.quick)
-    times, peer = timing(args.quick)
-    print_tables(accuracy, times, peer)
-    data = {"benchmark": "features", "environment": env, "quick": args.quick,
-            "config": {"image": repr(ImageConfig()), "render": {"antialias": 5, "size": "320x240"},
-                       "noise_sigma": NOISE_SIGMA, "occluded_share": list(OCCLUDED_SHARE)},
-            "accuracy": accuracy, "timing": times, "sampling_peer": peer,
-            "metrics": _metrics(accuracy, times, peer)}
-    out = args.out if args.out is not None else (None if args.quick else DEFAULT_OUT)
+    if args.vs_reference:
+        vs_ref = versus_reference(args.quick)
+        print_versus_reference(vs_ref)
+        data = {"benchmark": "features_vs_reference", "environment": env, "quick": args.quick,
+                "front_end_vs_reference": vs_ref, "metrics": _reference_metrics(vs_ref)}
+        out = args.out if args.out is not None else (None if args.quick else VS_REFERENCE_OUT)
+    else:
+        print(HEADER)
+        accuracy = evaluate(args.quick)
+        times, peer = timing(args.quick)
+        vs_ref = versus_reference(args.quick)
+        print_tables(accuracy, times, peer)
+        print_versus_reference(vs_ref)
+        data = {"benchmark": "features", "environment": env, "quick": args.quick,
+                "config": {"image": repr(ImageConfig()), "render": {"antialias": 5, "size": "320x240"},
+                           "noise_sigma": NOISE_SIGMA, "occluded_share": list(OCCLUDED_SHARE)},
+                "accuracy": accuracy, "timing": times, "sampling_peer": peer, "front_end_vs_reference": vs_ref,
+                "metrics": {**_metrics(accuracy, times, peer), **_reference_metrics(vs_ref)}}
+        out = args.out if args.out is not None else (None if args.quick else DEFAULT_OUT)
     if out is not None:
         write_json(data, out)
         print(f"wrote {out}")

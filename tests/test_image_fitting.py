@@ -4,7 +4,7 @@
 import numpy as np
 import pytest
 
-from jaxhand.image import (
+from jaxhand.image.internal import (
     axial_line,
     imwplls,
     line_params,

@@ -5,28 +5,25 @@ import numpy as np
 import pytest
 import shapely
 
-from jaxhand.image import (
-    SEARCH_NAMES,
+from jaxhand.image import SEARCH_NAMES, SearchConfig
+from jaxhand.image import SamplerConfig as SC
+from jaxhand.image.internal import (
     Edges,
     Profiles,
-    SearchConfig,
     as_grey,
-    pill_outlines,
-    place_link_samplers,
-    sample_profiles,
-    search_named,
-    window_masks,
-)
-from jaxhand.image import SamplerConfig as SC
-from jaxhand.image.searches._common import (
     correlate_shifts,
     derivative_kernel,
     gaussian_derivative,
     parabola_vertex,
+    pill_outlines,
+    place_link_samplers,
+    sample_profiles,
+    search_named,
     simple_derivative,
     width_template,
+    window_masks,
+    wssd_surface,
 )
-from jaxhand.image.searches._wssd import wssd_surface
 
 
 def _image(seed=0, h=30, w=40):
@@ -249,7 +246,7 @@ def test_as_grey_converts_once():
     bgr[..., 2] = 255  # pure red
     g = as_grey(bgr)
     assert g.dtype == np.float32 and g.shape == (4, 5) and np.allclose(g, round(0.299 * 255))
-    assert as_grey(np.ones((4, 5, 1), np.float64)).shape == (4, 5)
+    assert as_grey(np.full((4, 5, 1), 7.0)).shape == (4, 5)  # (all ones would read as a [0, 1] image)
 
 
 def test_wssd_with_a_partial_template():

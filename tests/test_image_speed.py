@@ -7,11 +7,20 @@ import pytest
 import shapely
 
 from jaxhand.cli_track import image_extractor
-from jaxhand.image import ImageConfig, WindowOutlines, as_grey, extract_features
-from jaxhand.image._extract import _observe, _off_other_links
-from jaxhand.image._regression import plls
-from jaxhand.image._visibility import convex_edges, inside_polygons, same_chain, window_masks
-from jaxhand.image.searches._wssd import _descend
+from jaxhand.image import ImageConfig, WindowOutlines, extract_features
+from jaxhand.image.internal import (
+    CameraContext,
+    Clock,
+    as_grey,
+    convex_edges,
+    inside_polygons,
+    observe,
+    off_other_links,
+    plls,
+    same_chain,
+    window_masks,
+)
+from jaxhand.image.internal import wssd_descend as _descend
 from jaxhand.render import RenderConfig, make_preset, render_frame
 
 
@@ -55,7 +64,8 @@ def _observations(data, q_offset_deg=0.0):
     for q, images in frames:
         q = q + np.where(seq.model.is_angle, np.radians(q_offset_deg) * rng.standard_normal(len(q)), 0.0)
         for cam, image in zip(seq.cameras, images):
-            yield _observe(as_grey(image), seq.model, cam, q, chain, config)
+            yield observe(CameraContext(grey=as_grey(image), model=seq.model, camera=cam, chain=chain, config=config,
+                                        clock=Clock()), q)
 
 
 def _probe_points(obs):
@@ -75,13 +85,13 @@ def test_off_other_links_equals_the_shapely_union(request, data_name, offset_deg
     n_off = n_on = 0
     for obs in _observations(data, offset_deg):
         pts = _probe_points(obs)
-        fast = _off_other_links(obs, pts)
+        fast = off_other_links(obs, pts)
         ref = _off_other_links_union(obs, pts)
         np.testing.assert_array_equal(fast, ref)
         n_off, n_on = n_off + int(fast.sum()), n_on + int((~fast).sum())
         # a subset of links (the tips' use)
         tl = np.array([len(obs.start) - 1, 0])
-        np.testing.assert_array_equal(_off_other_links(obs, pts[tl], tl), _off_other_links_union(obs, pts[tl], tl))
+        np.testing.assert_array_equal(off_other_links(obs, pts[tl], tl), _off_other_links_union(obs, pts[tl], tl))
     assert n_off > 100 and n_on > 100  # the test covers both answers
 
 

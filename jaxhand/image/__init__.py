@@ -2,54 +2,42 @@
 link lines and tip points out, as :class:`jaxhand.features.Features`.
 
 NumPy, OpenCV and shapely only: trackers are placed from one jitted kinematics call, every profile
-of a frame is sampled in one ``cv2.remap``, searched as one array, and windowed with shapely's
-vectorised predicates.
+of a frame is sampled in one ``cv2.remap``, searched as one array, and windowed by point tests on
+the pill outlines.
 
 - :func:`extract_features` is the entry point; :class:`ImageConfig` selects the search by name
-  (:data:`SEARCH_NAMES`) and holds every setting.
+  (:data:`SEARCH_NAMES`) and holds every setting, grouped in its sub-configs.
 - :func:`capture_templates` stores unoccluded profile templates in an :class:`ImageState`, which
-  the tracker carries between frames for the WSSD search; :func:`update_widths` keeps the
-  phalanx radii estimated from the images there (appendix E, ``ImageConfig.width_gain``).
-- The pieces (tracker placement, profile sampling, visibility, searches, regressions, line
-  fitting) are public for tests, benchmarks and figures.
+  the tracker carries between frames for the WSSD search; :func:`measure_widths` and
+  :func:`update_widths` keep the phalanx radii estimated from the images there (appendix E,
+  ``ImageConfig.width_gain``).
+- :class:`Diagnostics` (and :class:`WindowOutlines`, for overlays) report what was seen.
+
+The pieces (tracker placement, profile sampling, visibility, searches, regressions, line
+fitting) are shared with tests, benchmarks and figures through :mod:`jaxhand.image.internal`,
+which is documented but not a stable interface.
 """
 
 from ._config import (
-    INTERPOLATIONS,
-    POLARITIES,
     ImageConfig,
     LineConfig,
+    RecentreConfig,
     SamplerConfig,
     SearchConfig,
     TipConfig,
     VisibilityConfig,
+    WidthConfig,
 )
-from ._extract import (
-    CameraDiagnostics,
-    Diagnostics,
-    WindowOutlines,
-    as_images,
-    capture_templates,
-    extract_features,
-    measure_widths,
-    update_widths,
-)
-from ._lines import axial_line, line_params, line_point_direction, offset_towards, ransac_pca
-from ._regression import imwplls, mwplls, plls
-from ._sampling import as_grey, sample_profiles
+from ._diagnostics import Diagnostics, WindowOutlines
+from ._extract import extract_features
 from ._state import ImageState
-from ._trackers import LinkSamplers, TipSamplers, place_link_samplers, place_tip_samplers, refine_tip
-from ._visibility import Visibility, compute_visibility, pill_outlines, same_chain, window_masks
-from .searches import SEARCH_NAMES, SEARCHES, Edges, Profiles, search_named
+from ._templates import capture_templates
+from ._widths import measure_widths, update_widths
+from .searches import SEARCH_NAMES
 
 __all__ = [
     "extract_features", "capture_templates", "measure_widths", "update_widths", "ImageState", "Diagnostics",
-    "CameraDiagnostics", "WindowOutlines",
-    "ImageConfig", "SamplerConfig", "SearchConfig", "VisibilityConfig", "LineConfig", "TipConfig",
-    "INTERPOLATIONS", "POLARITIES", "SEARCH_NAMES", "SEARCHES", "search_named", "Profiles", "Edges",
-    "as_grey", "as_images", "sample_profiles",
-    "LinkSamplers", "TipSamplers", "place_link_samplers", "place_tip_samplers", "refine_tip",
-    "Visibility", "compute_visibility", "pill_outlines", "same_chain", "window_masks",
-    "ransac_pca", "axial_line", "line_params", "line_point_direction", "offset_towards",
-    "plls", "mwplls", "imwplls",
+    "WindowOutlines", "SEARCH_NAMES",
+    "ImageConfig", "SamplerConfig", "SearchConfig", "VisibilityConfig", "LineConfig", "TipConfig", "RecentreConfig",
+    "WidthConfig",
 ]

@@ -12,8 +12,8 @@ import dataclasses
 
 from .._errors import InputError
 
-__all__ = ["SamplerConfig", "SearchConfig", "VisibilityConfig", "LineConfig", "TipConfig", "ImageConfig",
-           "INTERPOLATIONS", "POLARITIES"]
+__all__ = ["SamplerConfig", "SearchConfig", "VisibilityConfig", "LineConfig", "TipConfig", "RecentreConfig",
+           "WidthConfig", "ImageConfig", "INTERPOLATIONS", "POLARITIES"]
 
 INTERPOLATIONS = ("nearest", "bilinear", "bicubic")
 POLARITIES = ("bright", "dark")
@@ -164,6 +164,10 @@ class VisibilityConfig:
             spoils the template match.
         occluder_margin_px: occluding polygons are grown by this much (px) before subtraction, so
             the occluder's own boundary stays out of the occluded link's window.
+        background_reach: a profile's boundary counts as seen against the background when the
+            points these many radii (``r``) from the profile's centre on that side lie off every
+            other link's outline; several distances, so a thin gap next to a finger is not taken
+            for background (used by the WSSD snap, template re-centring and width measures).
     """
 
     occlusion: bool = True
@@ -171,6 +175,7 @@ class VisibilityConfig:
     simplify_px: float = 0.25
     window_pad: float = 0.0
     occluder_margin_px: float = 1.5
+    background_reach: tuple[float, ...] = (1.1, 1.25, 1.4)
 
     def __post_init__(self):
         w = "VisibilityConfig"
@@ -180,6 +185,8 @@ class VisibilityConfig:
         _check(self.window_pad >= 0, f"{w}.window_pad", f"must be >= 0, got {self.window_pad!r}")
         _check(self.occluder_margin_px >= 0, f"{w}.occluder_margin_px",
                f"must be >= 0, got {self.occluder_margin_px!r}")
+        _check(len(self.background_reach) >= 1 and all(a > 0 for a in self.background_reach),
+               f"{w}.background_reach", f"need one or more distances > 0, got {self.background_reach!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -232,6 +239,10 @@ class TipConfig:
             so its sampler lies on the measured axis (eq. 4.1); along the predicted axis alone a
             misplaced prediction can find another edge. Off by default: on the two-finger
             sequence the tips it drops cost more than the wrong ones it avoids.
+        beyond: a tip counts only when the points these many radii (``r``) past it along the
+            axis lie off every other link's outline: over another link the tip's boundary is
+            weak or missing and the strongest derivative lies elsewhere (thesis §4.4 assumes a
+            clear tip).
     """
 
     points: int = 32
@@ -239,6 +250,7 @@ class TipConfig:
     sigma: float = 1.0
     min_strength: float = 8.0
     need_line: bool = False
+    beyond: tuple[float, ...] = (1.1, 1.4)
 
     def __post_init__(self):
         w = "TipConfig"
@@ -247,6 +259,80 @@ class TipConfig:
         _check(self.scope > 0, f"{w}.scope", f"must be > 0, got {self.scope!r}")
         _check(self.sigma >= 0, f"{w}.sigma", f"must be >= 0, got {self.sigma!r}")
         _check(self.min_strength >= 0, f"{w}.min_strength", f"must be >= 0, got {self.min_strength!r}")
+        _check(all(a > 0 for a in self.beyond), f"{w}.beyond", f"distances must be > 0, got {self.beyond!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class RecentreConfig:
+    """Template re-centring (``ImageConfig.template_recentre``): where each new template shows its
+    link's axis. Lengths in radius units ``r`` or profile samples, as named.
+
+    Attributes:
+        core: a profile counts only when the link's window covers its samples within this many
+            ``r`` of the centre (no nearer finger across the phalanx's middle).
+        width_tolerance: ... and when its two boundaries lie ``2 r`` apart within this many ``r``
+            (a boundary taken from a neighbour gives another width).
+        refits: the PLLS line of a link's midpoints is refitted this many times, each without the
+            midpoints off it by more than ``outlier_samples``.
+        outlier_samples: that distance (samples): a midpoint further off is a wrong boundary.
+        min_profiles: a link needs at least this many counted profiles, and at least half of
+            them, for a line (fewer could be one wrong boundary).
+        deadband: a link whose line stays within this many samples of the centre everywhere is not
+            moved: shading shifts the two boundaries unequally by a fraction of a sample, so only
+            a template off by more than that (drift) is corrected.
+    """
+
+    core: float = 0.7
+    width_tolerance: float = 0.4
+    refits: int = 2
+    outlier_samples: float = 1.0
+    min_profiles: int = 3
+    deadband: float = 0.75
+
+    def __post_init__(self):
+        w = "RecentreConfig"
+        _check(self.core >= 0, f"{w}.core", f"must be >= 0, got {self.core!r}")
+        _check(self.width_tolerance > 0, f"{w}.width_tolerance", f"must be > 0, got {self.width_tolerance!r}")
+        _check(isinstance(self.refits, int) and self.refits >= 0, f"{w}.refits",
+               f"need an int >= 0, got {self.refits!r}")
+        _check(self.outlier_samples > 0, f"{w}.outlier_samples", f"must be > 0, got {self.outlier_samples!r}")
+        _check(isinstance(self.min_profiles, int) and self.min_profiles >= 2, f"{w}.min_profiles",
+               f"need an int >= 2, got {self.min_profiles!r}")
+        _check(self.deadband >= 0, f"{w}.deadband", f"must be >= 0, got {self.deadband!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class WidthConfig:
+    """Width measures and the radius estimate (thesis appendix E; :func:`jaxhand.image.measure_widths`).
+
+    Attributes:
+        core: a profile measures a width only when the link's window covers its samples within
+            this many radii ``r`` of the centre (no nearer finger across the phalanx's middle).
+        ratio_range: a width measure outside these multiples of the radius in use is implausible
+            (the profile spans ``±scope`` radii, so a boundary beyond it cannot be seen anyway).
+        min_count: a link's measures count only when at least this many of them agree ...
+        agreement: ... with their median to this share (an edge taken from a touching neighbour
+            stands out).
+        radius_range: the estimated radii stay within these multiples of the model's, so a run of
+            wrong poses cannot shrink or grow a phalanx without bound.
+    """
+
+    core: float = 0.5
+    ratio_range: tuple[float, float] = (0.5, 1.6)
+    min_count: int = 4
+    agreement: float = 0.1
+    radius_range: tuple[float, float] = (0.5, 2.0)
+
+    def __post_init__(self):
+        w = "WidthConfig"
+        _check(self.core >= 0, f"{w}.core", f"must be >= 0, got {self.core!r}")
+        _check(len(self.ratio_range) == 2 and 0 < self.ratio_range[0] < self.ratio_range[1], f"{w}.ratio_range",
+               f"need 0 < low < high, got {self.ratio_range!r}")
+        _check(isinstance(self.min_count, int) and self.min_count >= 1, f"{w}.min_count",
+               f"need an int >= 1, got {self.min_count!r}")
+        _check(self.agreement > 0, f"{w}.agreement", f"must be > 0, got {self.agreement!r}")
+        _check(len(self.radius_range) == 2 and 0 < self.radius_range[0] <= 1 <= self.radius_range[1],
+               f"{w}.radius_range", f"need 0 < low <= 1 <= high, got {self.radius_range!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -262,6 +348,8 @@ class ImageConfig:
         visibility: visibility ordering and windows.
         lines: line fitting and link validity.
         tips: tip features.
+        recentre: how template re-centring finds the axis a new template shows.
+        widths: width measures and the radius estimate.
         template_min_visible: a view updates a link's template only when at least this share of
             the link's outline is visible (and then only the samples that show it).
         template_recentre: re-centre every new template on the axis the template itself shows
@@ -280,6 +368,9 @@ class ImageConfig:
             by each of these angles (degrees) both ways and take the line found with the most
             boundary inliers (not in the documents: a phalanx that turns faster than the
             filter predicts is found again). Empty: never.
+        reacquire_min_visible: only a link predicted with at least this visible share is searched
+            for again: a link partly behind another is missing for that reason, not because it
+            turned.
     """
 
     method: str = "wssd"
@@ -288,10 +379,13 @@ class ImageConfig:
     visibility: VisibilityConfig = VisibilityConfig()
     lines: LineConfig = LineConfig()
     tips: TipConfig = TipConfig()
+    recentre: RecentreConfig = RecentreConfig()
+    widths: WidthConfig = WidthConfig()
     template_min_visible: float = 0.25
     template_recentre: bool = True
     width_gain: float = 0.0
     reacquire_deg: tuple[float, ...] = ()
+    reacquire_min_visible: float = 0.9
 
     def __post_init__(self):
         from .searches import SEARCH_NAMES
@@ -303,6 +397,8 @@ class ImageConfig:
         _check(0 <= self.width_gain <= 1, "ImageConfig.width_gain", f"must lie in [0, 1], got {self.width_gain!r}")
         _check(all(0 < a <= 90 for a in self.reacquire_deg), "ImageConfig.reacquire_deg",
                f"angles must lie in (0, 90] degrees, got {self.reacquire_deg!r}")
+        _check(0 <= self.reacquire_min_visible <= 1, "ImageConfig.reacquire_min_visible",
+               f"must lie in [0, 1], got {self.reacquire_min_visible!r}")
 
     def replace(self, **changes) -> ImageConfig:
         """A copy with some fields changed (``config.replace(method="gaussian")``)."""

@@ -27,7 +27,8 @@ _CLIP_PX = 4.0
 def as_grey(image, where: str = "image", size: tuple[int, int] | None = None) -> np.ndarray:
     """Check an image and convert it once to a float32 grey image in grey levels.
 
-    Accepted: 2-D uint8 or float (float images are read on the same 0-255 scale as uint8), an
+    Accepted: 2-D uint8 or float (float images are read on the same 0-255 scale as uint8; one whose
+    finite pixels all lie in [0, 1], not all 0, is refused as a likely [0, 1]-scaled image), an
     (H, W, 1) array of those, or an (H, W, 3) uint8 BGR image (converted with OpenCV's weights).
     NaN or inf pixels are allowed: profiles through them are masked later.
 
@@ -37,7 +38,7 @@ def as_grey(image, where: str = "image", size: tuple[int, int] | None = None) ->
         size: expected (width, height) in pixels, e.g. the camera's; None skips the check.
 
     Raises:
-        InputError: naming ``where`` and what is wrong (type, dtype, shape, size).
+        InputError: naming ``where`` and what is wrong (type, dtype, shape, size, a [0, 1] range).
     """
     try:
         a = np.asarray(image)
@@ -55,6 +56,13 @@ def as_grey(image, where: str = "image", size: tuple[int, int] | None = None) ->
         raise InputError(f"{where}: expected a 2-D grey image or an (H, W, 3) BGR image, got shape {a.shape}")
     if a.shape[0] == 0 or a.shape[1] == 0:
         raise InputError(f"{where}: the image is empty (shape {a.shape})")
+    if np.issubdtype(a.dtype, np.floating):
+        finite = a[np.isfinite(a)]
+        # A float image scaled to [0, 1] would be read as almost black, its edges far below every
+        # strength threshold, and would silently give no features.
+        if finite.size and finite.min() >= 0 and 0 < finite.max() <= 1:
+            raise InputError(f"{where}: a float image with values in [0, 1]; jaxhand reads grey levels on the "
+                             f"0-255 scale: pass image * 255 (or a uint8 image)")
     if size is not None and (a.shape[1], a.shape[0]) != tuple(size):
         raise InputError(f"{where}: size {a.shape[1]}x{a.shape[0]} (width x height) does not match the camera's "
                          f"{size[0]}x{size[1]}")

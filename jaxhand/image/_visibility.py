@@ -15,6 +15,7 @@ occluders.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 import shapely
@@ -34,17 +35,64 @@ class Visibility:
         depth: (links,) mean depth of each pill (mm; larger is farther).
         order: (links,) link indices from the farthest to the nearest (thesis fig. 4.15).
         visible: (links,) truncated polygons: outline less the nearer pills of other chains.
-        windows: (links,) window polygons: grown outline less the grown nearer pills.
         visible_share: (links,) area of the truncated polygon inside the image over the outline's
             area (0 for an empty outline).
+        pad_px: (links,) how far each outline is grown for its window (``window_pad`` radii).
+        nearer: (links, pills) the pills that cut each link's window (all False: none, or no
+            occlusion); its columns index ``covers``.
+        covers: (pills,) the occluding pills grown by ``occluder_margin_px``.
+        cut: whether windows are cut at all (occlusion on, more than one link).
+
+    ``grown`` (the grown outlines) and ``windows`` (grown outline less the union of its nearer
+    covers) are shapely polygons built on first use (a batch of turns needs the searched links'
+    windows only).
     """
 
     outlines: np.ndarray
     depth: np.ndarray
-    order: np.ndarray
+    order: np.ndarray | None
     visible: np.ndarray
-    windows: np.ndarray
     visible_share: np.ndarray
+    pad_px: np.ndarray
+    nearer: np.ndarray
+    covers: np.ndarray
+    cut: bool
+
+    @functools.cached_property
+    def grown(self) -> np.ndarray:
+        """(links,) the outlines grown by ``pad_px`` (the outlines themselves where it is 0)."""
+        return _grow(self.outlines, self.pad_px)
+
+    @functools.cached_property
+    def windows(self) -> np.ndarray:
+        """(links,) window polygons: grown outline less the union of its nearer covers."""
+        if not self.cut:
+            return self.grown
+        none = shapely.Polygon()
+        # Links with the same occluders (the phalanges of one finger behind another, often) share
+        # one union of them.
+        unions: dict[bytes, object] = {}
+        occl = np.empty(len(self.outlines), dtype=object)
+        for i, row in enumerate(self.nearer):
+            key = row.tobytes()
+            if key not in unions:
+                unions[key] = shapely.union_all(self.covers[row]) if row.any() else none
+            occl[i] = unions[key]
+        return shapely.difference(self.grown, occl)
+
+    def rows(self, at: np.ndarray) -> Visibility:
+        """The visibility of the links ``at`` only (their windows still cut by every cover)."""
+        return Visibility(outlines=self.outlines[at], depth=self.depth[at], order=None, visible=self.visible[at],
+                          visible_share=self.visible_share[at], pad_px=self.pad_px[at], nearer=self.nearer[at],
+                          covers=self.covers, cut=self.cut)
+
+
+def _grow(outlines: np.ndarray, pad_px: np.ndarray) -> np.ndarray:
+    """``shapely.buffer(outlines, pad_px)``, skipped where ``pad_px`` is 0 (a zero buffer only
+    rewrites the same ring)."""
+    if not np.any(pad_px):
+        return outlines
+    return shapely.buffer(outlines, pad_px, quad_segs=4)
 
 
 def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.ndarray, radius_end: np.ndarray,
@@ -71,7 +119,9 @@ def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.nda
           & (rs > 0) & (re > 0))
     cloud = np.concatenate([s[:, None] + rs[:, None, None] * circle, e[:, None] + re[:, None, None] * circle], 1)
     cloud = np.where(ok[:, None, None], cloud, 0.0)
-    hulls = shapely.convex_hull(shapely.multipoints(cloud))
+    # GEOS takes the hull of the coordinates in their order whatever the geometry type; a line
+    # string is built straight from the array (a multipoint first makes one Point per vertex).
+    hulls = shapely.convex_hull(shapely.linestrings(cloud))
     hulls = shapely.simplify(hulls, simplify_px) if simplify_px > 0 else hulls
     return np.where(ok, hulls, shapely.Polygon())
 
@@ -100,10 +150,15 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
     mean_depth = np.nan_to_num(np.asarray(depth, float).mean(-1), nan=np.inf, posinf=np.inf, neginf=np.inf)
     order = np.argsort(-mean_depth, kind="stable")
     radius = 0.5 * (np.nan_to_num(radius_start) + np.nan_to_num(radius_end))
-    grown = shapely.buffer(outlines, config.window_pad * radius, quad_segs=4)
+    pad = config.window_pad * radius
     L = len(outlines)
     empty = shapely.is_empty(outlines)
-    if config.occlusion and L > 1:
+    cut = bool(config.occlusion and L > 1)
+    nearer = np.zeros((L, L), bool)
+    covers = outlines
+    grown = None
+    if cut:
+        grown = _grow(outlines, pad)
         covers = shapely.buffer(outlines, config.occluder_margin_px, quad_segs=4) if config.occluder_margin_px > 0 \
             else outlines
         # Only nearer pills of other chains whose bounding boxes meet this one's can cut it.
@@ -115,25 +170,33 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
         none = shapely.Polygon()
         # Links with the same occluders (the phalanges of one finger behind another, often) share
         # one union of them.
-        unions: dict[bytes, tuple] = {}
+        unions: dict[bytes, object] = {}
         occl = np.empty(L, dtype=object)
-        occl_grown = np.empty(L, dtype=object)
         for i in range(L):
             key = nearer[i].tobytes()
             if key not in unions:
-                unions[key] = ((shapely.union_all(outlines[nearer[i]]), shapely.union_all(covers[nearer[i]]))
-                               if nearer[i].any() else (none, none))
-            occl[i], occl_grown[i] = unions[key]
+                unions[key] = shapely.union_all(outlines[nearer[i]]) if nearer[i].any() else none
+            occl[i] = unions[key]
         visible = shapely.difference(outlines, occl)
-        windows = shapely.difference(grown, occl_grown)
     else:
-        visible, windows = outlines.copy(), grown
+        visible = outlines.copy()
     w, h = image_size
     frame = shapely.box(-0.5, -0.5, w - 0.5, h - 0.5)
     area = shapely.area(outlines)
-    share = np.where(area > 0, shapely.area(shapely.intersection(visible, frame)) / np.where(area > 0, area, 1.0), 0.0)
-    return Visibility(outlines=outlines, depth=mean_depth, order=order, visible=visible, windows=windows,
-                      visible_share=np.clip(share, 0.0, 1.0))
+    # Only a pill that reaches past the image border is clipped by it (GEOS's overlay is the
+    # slowest step here); inside the image the visible area is the truncated polygon's own.
+    b = shapely.bounds(outlines)
+    inside = (b[:, 0] >= -0.5) & (b[:, 1] >= -0.5) & (b[:, 2] <= w - 0.5) & (b[:, 3] <= h - 0.5)
+    seen_area = shapely.area(visible)
+    if not inside.all():
+        out = ~inside
+        seen_area[out] = shapely.area(shapely.intersection(visible[out], frame))
+    share = np.where(area > 0, seen_area / np.where(area > 0, area, 1.0), 0.0)
+    vis = Visibility(outlines=outlines, depth=mean_depth, order=order, visible=visible,
+                     visible_share=np.clip(share, 0.0, 1.0), pad_px=pad, nearer=nearer, covers=covers, cut=cut)
+    if grown is not None:
+        vis.__dict__["grown"] = grown  # already built for the bounds (the cached property's slot)
+    return vis
 
 
 def window_masks(polygons: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -189,14 +252,17 @@ def convex_edges(polygons: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
     if np.any(area2[present] == 0):
         return None
     sign = np.where(area2 < 0, -1.0, 1.0)[:, None, None]
-    a = np.where(sign < 0, a + e, a)
-    e = e * sign
-    # Convex: every turn between consecutive edges is to the left (or straight).
+    # Convex: every turn between consecutive edges, in the ring's own order, is to the side of
+    # its orientation (or straight, within rounding: a point near such a vertex is within the
+    # callers' tolerance of both edges' lines and is decided by shapely).
     nxt = np.roll(e, -1, axis=1)
     nxt = np.where((k[None, :] == counts[:, None] - 1)[..., None], e[:, :1], nxt)
-    turn = e[..., 0] * nxt[..., 1] - e[..., 1] * nxt[..., 0]
-    if np.any((turn < 0) & valid_edge & present[:, None]):
+    turn = sign[..., 0] * (e[..., 0] * nxt[..., 1] - e[..., 1] * nxt[..., 0])
+    slack = 1e-12 * np.linalg.norm(e, axis=-1) * np.linalg.norm(nxt, axis=-1)
+    if np.any((turn < -slack) & valid_edge & present[:, None]):
         return None
+    a = np.where(sign < 0, a + e, a)
+    e = e * sign
     return a, e, present
 
 
@@ -222,8 +288,16 @@ def inside_polygons(polygons: np.ndarray, points: np.ndarray, *, tol: float = 1e
     y = np.where(finite, flat[:, 1], 0.0)
     edges = convex_edges(geoms) if edges is False else edges
     if edges is None:
-        shapely.prepare(geoms)
-        out = shapely.contains_xy(geoms[None, :], x[:, None], y[:, None]) & finite[:, None]
+        # Only the pairs whose point lies within the polygon's bounding box are asked of shapely;
+        # a point outside it is outside the polygon (and an empty polygon's NaN box holds none).
+        b = shapely.bounds(geoms)
+        cand = ((x[:, None] >= b[None, :, 0]) & (x[:, None] <= b[None, :, 2]) & (y[:, None] >= b[None, :, 1])
+                & (y[:, None] <= b[None, :, 3]) & finite[:, None])
+        out = np.zeros(cand.shape, bool)
+        p, g = np.nonzero(cand)
+        if len(p):
+            shapely.prepare(geoms)
+            out[p, g] = shapely.contains_xy(geoms[g], x[p], y[p])
         return out.reshape(lead + (len(geoms),))
     a, e, present = edges
     # cross(e, p - a) > 0 on the interior side of every edge: (points, n, V).
@@ -240,3 +314,4 @@ def inside_polygons(polygons: np.ndarray, points: np.ndarray, *, tol: float = 1e
         shapely.prepare(geoms)
         out[p, g] = shapely.contains_xy(geoms[g], x[p], y[p])
     return out.reshape(lead + (len(geoms),))
+

@@ -16,7 +16,23 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 __all__ = ["Profiles", "Edges", "parabola_vertex", "simple_derivative", "gaussian_derivative",
            "derivative_kernel", "masked_argmax", "width_template", "correlate_shifts", "edges_about_centres",
-           "sample_at", "boundary_peaks", "per_pixel"]
+           "sample_at", "boundary_peaks", "per_pixel", "pad_last"]
+
+
+def pad_last(a: np.ndarray, h: int, *, edge: bool = False) -> np.ndarray:
+    """``np.pad`` of the last axis by ``h`` on both sides, with zeros (False) or, with ``edge``,
+    the end values: the same array, without ``np.pad``'s per-call Python overhead (it runs
+    several times on every profile set of a frame)."""
+    n = a.shape[-1]
+    out = np.empty(a.shape[:-1] + (n + 2 * h,), a.dtype)
+    out[..., h:h + n] = a
+    if edge and n:
+        out[..., :h] = a[..., :1]
+        out[..., h + n:] = a[..., -1:]
+    else:
+        out[..., :h] = 0
+        out[..., h + n:] = 0
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -130,10 +146,10 @@ def gaussian_derivative(values: np.ndarray, usable: np.ndarray, sigma: float
     """
     c = derivative_kernel(sigma)
     h = (len(c) - 1) // 2
-    padded = np.pad(values, [(0, 0)] * (values.ndim - 1) + [(h, h)], mode="edge")
+    padded = pad_last(values, h, edge=True)
     win = sliding_window_view(padded, len(c), axis=-1)
     d = win @ c
-    bad = np.pad(~usable, [(0, 0)] * (usable.ndim - 1) + [(h, h)], mode="edge")
+    bad = pad_last(~usable, h, edge=True)
     ok = ~np.any(sliding_window_view(bad, len(c), axis=-1), axis=-1)
     return np.where(ok, d, 0.0), ok, np.arange(values.shape[-1], dtype=float)
 
@@ -183,7 +199,7 @@ def correlate_shifts(d: np.ndarray, d_valid: np.ndarray, template: np.ndarray, m
         (C, shifts): C with shape (..., 2 S + 1) and the displacement of each column.
     """
     S = int(max_shift)
-    padded = np.pad(np.where(d_valid, d, 0.0), [(0, 0)] * (d.ndim - 1) + [(S, S)])
+    padded = pad_last(np.where(d_valid, d, 0.0), S)
     win = sliding_window_view(padded, d.shape[-1], axis=-1)  # (..., 2S+1, n): row s is d(j + s - S)
     return win @ template, np.arange(-S, S + 1)
 

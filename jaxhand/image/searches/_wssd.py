@@ -35,6 +35,7 @@ from ._common import (
     edges_about_centres,
     gaussian_derivative,
     masked_argmax,
+    pad_last,
     parabola_vertex,
     per_pixel,
 )
@@ -59,9 +60,8 @@ def wssd_surface(values: np.ndarray, usable: np.ndarray, templates: np.ndarray, 
         each entry, and the shifts.
     """
     S = int(max_shift)
-    pad = [(0, 0)] * (values.ndim - 1) + [(S, S)]
-    img = sliding_window_view(np.pad(values, pad), values.shape[-1], axis=-1)  # (..., 2S+1, n): I(j + s)
-    ok = sliding_window_view(np.pad(usable, pad), values.shape[-1], axis=-1) & window[..., None, :]
+    img = sliding_window_view(pad_last(values, S), values.shape[-1], axis=-1)  # (..., 2S+1, n): I(j + s)
+    ok = sliding_window_view(pad_last(usable, S), values.shape[-1], axis=-1) & window[..., None, :]
     diff = np.where(ok, img - templates[..., None, :], 0.0)
     counts = ok.sum(-1)
     W = np.where(counts > 0, (diff * diff).sum(-1) / np.maximum(counts, 1), np.inf)

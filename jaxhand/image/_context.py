@@ -1,0 +1,185 @@
+"""One camera's view of one frame: the per-camera context the pipeline's steps share, and the
+observation at one pose (predicted geometry, samplers, visibility, sampled profiles), with the
+point tests on its outlines; also the entry points' common input checks."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+
+import jax.numpy as jnp
+import numpy as np
+
+from .._errors import InputError
+from ..camera import Perspective, as_rig
+from ..kinematics import project_pose, validate_q
+from ..model import Model
+from ._config import ImageConfig
+from ._diagnostics import Clock
+from ._sampling import as_grey, sample_profiles
+from ._state import ImageState
+from ._trackers import LinkSamplers, place_link_samplers
+from ._visibility import Visibility, compute_visibility, inside_polygons, same_chain, window_masks
+
+__all__ = ["CameraContext", "Observation", "observe", "end_radii", "off_other_links", "against_background",
+           "as_images", "prepare", "matching_state", "layout"]
+
+
+@dataclasses.dataclass(frozen=True)
+class CameraContext:
+    """What every step of one camera's analysis of one frame works with.
+
+    Attributes:
+        grey: (H, W) float32 grey image (:func:`jaxhand.image.as_grey`).
+        model: the model, with the radii in use (the image state's estimate, else its own).
+        camera: the camera.
+        chain: (links, links) :func:`same_chain` of the model.
+        config: the front end's settings.
+        clock: stage timings, shared by the cameras of one call.
+        search: the configured search (None where none is run).
+        templates, template_mask: (links, samplers, points) the templates in use (None: none).
+    """
+
+    grey: np.ndarray
+    model: Model
+    camera: object
+    chain: np.ndarray
+    config: ImageConfig
+    clock: Clock
+    search: Callable | None = None
+    templates: np.ndarray | None = None
+    template_mask: np.ndarray | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Observation:
+    """A view's predicted geometry, samplers, visibility and sampled profiles.
+
+    Attributes:
+        start, end: (links, 2) projected link ends (px).
+        tips: (tips, 2) projected tips (px); None in a batch of turns.
+        samplers: the link samplers.
+        visibility: outlines, windows and visible shares.
+        values, usable: (links, samplers, points) sampled profiles and their usable samples.
+        window: (links, samplers, points) the samples inside their link's window (and usable).
+    """
+
+    start: np.ndarray
+    end: np.ndarray
+    tips: np.ndarray | None
+    samplers: LinkSamplers
+    visibility: Visibility
+    values: np.ndarray | None
+    usable: np.ndarray | None
+    window: np.ndarray | None
+
+
+def end_radii(camera, depth: np.ndarray, radius: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """(links, 2) the radius in pixels of each link end's circle: a perspective camera shows each
+    end's circle at its own size (the radius at the link's mid depth scaled as 1/depth); NaN for
+    a link without samplers."""
+    if isinstance(camera, Perspective):
+        mid = depth.mean(-1, keepdims=True)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r_ends = radius[:, None] * mid / depth
+    else:
+        r_ends = np.stack([radius, radius], -1)
+    return np.where(ok[:, None], r_ends, np.nan)
+
+
+def observe(ctx: CameraContext, q: np.ndarray) -> Observation:
+    """Steps 1-3 of the pipeline at pose ``q``: kinematics, samplers, visibility, profiles."""
+    config, clock = ctx.config, ctx.clock
+    view = project_pose(ctx.model, ctx.camera, jnp.asarray(q))
+    start, end = np.asarray(view.link_start_px, float), np.asarray(view.link_end_px, float)
+    depth, radius = np.asarray(view.link_depth, float), np.asarray(view.link_radius_px, float)
+    clock.lap("kinematics")
+    samplers = place_link_samplers(start, end, radius, config.samplers)
+    clock.lap("samplers")
+    r_ends = end_radii(ctx.camera, depth, radius, samplers.ok)
+    vis = compute_visibility(start, end, depth, r_ends[:, 0], r_ends[:, 1], ctx.chain, ctx.camera.size,
+                             config.visibility)
+    clock.lap("visibility")
+    values, usable = sample_profiles(ctx.grey, samplers.points, config.samplers.interpolation)
+    clock.lap("sampling")
+    window = window_masks(vis.windows, samplers.points) & usable
+    clock.lap("visibility")
+    return Observation(start=start, end=end, tips=np.asarray(view.tips_px, float), samplers=samplers,
+                       visibility=vis, values=values, usable=usable, window=window)
+
+
+def off_other_links(obs: Observation, points: np.ndarray, links: np.ndarray | None = None) -> np.ndarray:
+    """True where a point of link ``links[i]`` (``points[i, ...]``) lies outside the outline of every
+    other link: other fingers, and also the neighbouring phalanges of its own finger, which near
+    a bent joint widen the silhouette on the inner side."""
+    outlines = obs.visibility.outlines
+    L = len(outlines)
+    links = np.arange(L) if links is None else np.asarray(links, int)
+    pts = np.asarray(points, float)
+    # (links, ..., L): each point, each outline; shapely's prepared predicate (edges=None) is
+    # faster here than the NumPy edge test of inside_polygons.
+    inside = inside_polygons(outlines, pts, edges=None)
+    own = np.arange(L) == links.reshape((-1,) + (1,) * (pts.ndim - 1))
+    return ~np.any(inside & ~own, axis=-1)
+
+
+def against_background(obs: Observation, reach: Sequence[float]) -> np.ndarray:
+    """(links, samplers, 2) the points ``reach`` radii to each side of a profile's centre (boundary
+    0: towards smaller sample indices, boundary 1: larger) lie off every other link's outline
+    (:func:`off_other_links`), so that boundary is the link's own, seen against the background
+    (``VisibilityConfig.background_reach``)."""
+    s = obs.samplers
+    at = np.concatenate([-np.asarray(reach, float), np.asarray(reach, float)])
+    off = (s.radius_px[:, None] * at)[:, None, :, None] * s.normal[:, None, None, :]
+    clear = off_other_links(obs, s.centres[:, :, None, :] + off)  # (links, samplers, 2 * reaches)
+    n = len(reach)
+    return np.stack([clear[..., :n].all(-1), clear[..., n:].all(-1)], -1)
+
+
+def as_images(images, n_cameras: int, sizes: Sequence[tuple[int, int]]) -> list[np.ndarray]:
+    """Validate one image per camera and convert each once to float32 grey levels.
+
+    A single array is accepted for a one-camera rig.
+
+    Raises:
+        InputError: wrong count, type, dtype, shape, size or range, naming the image.
+    """
+    if isinstance(images, np.ndarray):
+        if n_cameras != 1:
+            raise InputError(f"images: expected a sequence of {n_cameras} images (one per camera), got one array")
+        images = [images]
+    try:
+        items = list(images)
+    except TypeError as err:
+        raise InputError(f"images: expected a sequence of images, got {type(images).__name__}") from err
+    if len(items) != n_cameras:
+        raise InputError(f"images: expected one image per camera ({n_cameras}), got {len(items)}")
+    return [as_grey(im, f"images[{i}]", sizes[i]) for i, im in enumerate(items)]
+
+
+def layout(config: ImageConfig) -> tuple[int, int, float]:
+    """(samplers per link, points per profile, scope): what shapes the templates."""
+    s = config.samplers
+    return (s.per_link, s.points, float(s.scope))
+
+
+def prepare(images, model: Model, cameras, q, config: ImageConfig | None, name: str):
+    """The entry points' checks: (config, rig, grey images, q, chain)."""
+    config = ImageConfig() if config is None else config
+    if not isinstance(config, ImageConfig):
+        raise InputError(f"config: expected an ImageConfig, got {type(config).__name__}")
+    rig = as_rig(cameras)
+    greys = as_images(images, len(rig), [c.size for c in rig])
+    q = validate_q(model, q, name=name)
+    chain = same_chain(model.link_frame, model.ancestors)
+    return config, rig, greys, q, chain
+
+
+def matching_state(state: ImageState | None, n_cameras: int, model: Model, config: ImageConfig) -> ImageState:
+    """``state`` when its templates fit this rig, model and layout, else an empty one (keeping
+    estimated radii of the right shape)."""
+    lay = layout(config)
+    if state is not None and state.matches(n_cameras, model.n_links, lay):
+        return state
+    radius = None if state is None or np.shape(state.radius_mm) != (model.n_links,) else state.radius_mm
+    return dataclasses.replace(ImageState.empty(n_cameras, model.n_links, lay), radius_mm=radius)

@@ -1,0 +1,309 @@
+"""Configuration of the image front end: frozen dataclasses with documented defaults.
+
+Nothing here enters jitted code (the front end is NumPy/OpenCV/shapely), so every field is a plain
+host value. Lengths across a profile are given in units of the link's predicted radius in pixels
+(``r``), so a profile always holds the same number of samples across a phalanx whatever its size in
+the image; this also makes stored templates independent of the finger's image scale.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from jaxhand import InputError
+
+__all__ = ["SamplerConfig", "SearchConfig", "VisibilityConfig", "LineConfig", "TipConfig", "ImageConfig",
+           "INTERPOLATIONS", "POLARITIES"]
+
+INTERPOLATIONS = ("nearest", "bilinear", "bicubic")
+POLARITIES = ("bright", "dark")
+
+
+def _check(cond: bool, where: str, msg: str) -> None:
+    if not cond:
+        raise InputError(f"{where}: {msg}")
+
+
+@dataclasses.dataclass(frozen=True)
+class SamplerConfig:
+    """Link samplers (thesis §4.1, fig. 4.2) and profile sampling (§4.2).
+
+    Attributes:
+        per_link: samplers (profiles) per link, spread evenly along the projected link.
+        along: first and last sampler position as fractions of the projected link (0 = start,
+            1 = end); staying off the joints keeps profiles away from the neighbouring phalanx.
+        points: samples per profile (the thesis uses 20); 48 puts samples about 1 px apart on a
+            phalanx 13 px in radius, and sub-sample edges need the profile no coarser than that.
+        scope: half length of a profile in units of the predicted radius ``r``; the profile spans
+            ``±scope · r`` about the predicted axis, so it reaches past both predicted boundaries.
+        interpolation: "nearest", "bilinear" or "bicubic" (OpenCV's remap kernels, thesis §4.2).
+        min_length_px: a link whose projection is shorter than this (px) gets no samplers (its
+            direction in the image is undefined or meaningless): the slot is invalid.
+    """
+
+    per_link: int = 8
+    along: tuple[float, float] = (0.2, 0.8)
+    points: int = 48
+    scope: float = 1.75
+    interpolation: str = "bilinear"
+    min_length_px: float = 2.0
+
+    def __post_init__(self):
+        w = "SamplerConfig"
+        _check(isinstance(self.per_link, int) and self.per_link >= 2, f"{w}.per_link", f"need an int >= 2, got "
+               f"{self.per_link!r}")
+        _check(len(self.along) == 2 and 0.0 <= self.along[0] < self.along[1] <= 1.0, f"{w}.along",
+               f"need 0 <= first < last <= 1, got {self.along!r}")
+        _check(isinstance(self.points, int) and self.points >= 8, f"{w}.points", f"need an int >= 8, got "
+               f"{self.points!r}")
+        _check(self.scope > 1.0, f"{w}.scope", f"the profile must reach past the radius (> 1), got {self.scope!r}")
+        _check(self.interpolation in INTERPOLATIONS, f"{w}.interpolation",
+               f"unknown {self.interpolation!r}; valid: {', '.join(INTERPOLATIONS)}")
+        _check(self.min_length_px >= 0, f"{w}.min_length_px", f"must be >= 0, got {self.min_length_px!r}")
+
+    @property
+    def centre(self) -> float:
+        """Index of the profile sample on the predicted axis (between two samples for even counts)."""
+        return (self.points - 1) / 2
+
+    @property
+    def samples_per_radius(self) -> float:
+        """Profile samples per predicted radius (the same for every link)."""
+        return (self.points - 1) / (2 * self.scope)
+
+
+@dataclasses.dataclass(frozen=True)
+class SearchConfig:
+    """Feature searches (thesis §4.3, appendix D); lengths in radius units ``r`` unless named.
+
+    Attributes:
+        polarity: "bright" when the hand is brighter than what surrounds it (the first boundary,
+            on the side of smaller profile index, is a rising edge), "dark" for the opposite.
+        min_strength: weakest accepted edge, grey levels per pixel (derivative searches) or the
+            weakest template contrast (wssd, grey levels); below it a boundary is invalid, which
+            is how a flat profile ends up masked.
+        sigma: standard deviation of the Gaussian derivative (thesis §11.1.2), in samples.
+        template_sigma: width (standard deviation, samples) of each of the two peaks of the
+            synthetic width template (§11.2.2); narrow peaks keep a neighbouring finger's edge from
+            pulling the correlation maximum.
+        search_window: width τ of each restricted search window (thesis §11.2.1), in ``r``.
+        max_shift: largest template displacement searched by correlation or WSSD, in ``r``.
+        subsample: refine integer peaks and valley points with a parabola through their two
+            neighbours (not in the thesis, whose positions are whole samples; it takes the edge
+            error from half a sample to a small fraction of one).
+        crest_floor: MWPLLS and iMWPLLS weigh each point of a correlation curve by its amplitude
+            above this share of the curve's maximum (negative parts never count). 0 is the thesis's
+            plain amplitude weighting, which §11.3.2 notes is pulled towards each curve's centre of
+            mass; the default keeps only the upper half of the crest.
+        crest_halfwidth: iMWPLLS keeps the points of the correlation surface within this distance of
+            the current line (thesis §11.3.3), in ``r``.
+        max_iter: iteration cap of iMWPLLS and of the WSSD valley descent (thesis §4.3.2).
+        min_window: a profile takes part in WSSD matching only when this share of its samples is
+            visible (thesis §4.3.1); fewer gives no edge for that profile.
+        max_mismatch: a WSSD match is accepted only when its RMS difference is at most this share
+            of the windowed template's standard deviation (rejects a profile that no longer shows
+            the phalanx).
+        snap: WSSD boundaries that lie against the background (no other link's outline just
+            outside them) and where the link is seen move to the strongest Gaussian-derivative
+            edge of the right sign within this distance (in ``r``), so the measurement rests on
+            the image's edge rather than on where an earlier, possibly slightly misplaced,
+            template put it (template drift); 0 keeps the template's boundaries (the thesis).
+    """
+
+    polarity: str = "bright"
+    min_strength: float = 8.0
+    sigma: float = 1.0
+    template_sigma: float = 0.5
+    search_window: float = 1.0
+    max_shift: float = 1.0
+    subsample: bool = True
+    crest_floor: float = 0.5
+    crest_halfwidth: float = 0.25
+    max_iter: int = 20
+    min_window: float = 0.15
+    max_mismatch: float = 0.5
+    snap: float = 0.2
+
+    def __post_init__(self):
+        w = "SearchConfig"
+        _check(self.polarity in POLARITIES, f"{w}.polarity", f"unknown {self.polarity!r}; valid: "
+               f"{', '.join(POLARITIES)}")
+        _check(self.min_strength >= 0, f"{w}.min_strength", f"must be >= 0, got {self.min_strength!r}")
+        _check(self.sigma > 0, f"{w}.sigma", f"must be > 0, got {self.sigma!r}")
+        _check(self.template_sigma > 0, f"{w}.template_sigma", f"must be > 0, got {self.template_sigma!r}")
+        _check(0 <= self.crest_floor < 1, f"{w}.crest_floor", f"must lie in [0, 1), got {self.crest_floor!r}")
+        _check(self.search_window > 0, f"{w}.search_window", f"must be > 0, got {self.search_window!r}")
+        _check(self.max_shift > 0, f"{w}.max_shift", f"must be > 0, got {self.max_shift!r}")
+        _check(self.crest_halfwidth > 0, f"{w}.crest_halfwidth", f"must be > 0, got {self.crest_halfwidth!r}")
+        _check(isinstance(self.max_iter, int) and self.max_iter >= 1, f"{w}.max_iter",
+               f"need an int >= 1, got {self.max_iter!r}")
+        _check(0 < self.min_window <= 1, f"{w}.min_window", f"must lie in (0, 1], got {self.min_window!r}")
+        _check(self.max_mismatch > 0, f"{w}.max_mismatch", f"must be > 0, got {self.max_mismatch!r}")
+        _check(self.snap >= 0, f"{w}.snap", f"must be >= 0, got {self.snap!r}")
+
+    @property
+    def sign(self) -> float:
+        """+1 when the first boundary is a rising edge (bright hand), -1 otherwise."""
+        return 1.0 if self.polarity == "bright" else -1.0
+
+
+@dataclasses.dataclass(frozen=True)
+class VisibilityConfig:
+    """Visibility ordering and window functions (thesis §4.3.3).
+
+    Attributes:
+        occlusion: compute windows from depth-sorted pill polygons; False treats every link as
+            fully visible (windows cover its whole polygon).
+        arc_points: vertices per hemisphere outline when a pill's outline is built (before the
+            convex hull and simplification).
+        simplify_px: tolerance of the polygon simplification (Douglas-Peucker), px.
+        window_pad: a link's own polygon is grown by this much (in ``r``) before the occluders are
+            cut out, so a window would keep a strip of background on each side. The default 0 is
+            the thesis's window (the truncated polygon itself): the background beside a finger
+            changes whenever another finger comes close, and a strip of it in the window then
+            spoils the template match.
+        occluder_margin_px: occluding polygons are grown by this much (px) before subtraction, so
+            the occluder's own boundary stays out of the occluded link's window.
+    """
+
+    occlusion: bool = True
+    arc_points: int = 12
+    simplify_px: float = 0.25
+    window_pad: float = 0.0
+    occluder_margin_px: float = 1.5
+
+    def __post_init__(self):
+        w = "VisibilityConfig"
+        _check(isinstance(self.arc_points, int) and self.arc_points >= 2, f"{w}.arc_points",
+               f"need an int >= 2, got {self.arc_points!r}")
+        _check(self.simplify_px >= 0, f"{w}.simplify_px", f"must be >= 0, got {self.simplify_px!r}")
+        _check(self.window_pad >= 0, f"{w}.window_pad", f"must be >= 0, got {self.window_pad!r}")
+        _check(self.occluder_margin_px >= 0, f"{w}.occluder_margin_px",
+               f"must be >= 0, got {self.occluder_margin_px!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class LineConfig:
+    """Line fitting (thesis §4.4) and the link slot's validity and weight.
+
+    Attributes:
+        tau_px: RANSAC inlier distance τ (px, Euclidean point-line distance).
+        min_inliers: fewest inliers for a boundary line.
+        det_eps: |det V| at or below which two boundary lines count as parallel and the axial point
+            is their points' midpoint (thesis eq. 4.4; the thesis uses 1e-9).
+        single_edge: when only one boundary is found, offset it by the predicted radius towards
+            the predicted axis (DigitEyes §4) instead of dropping the link.
+        single_edge_weight: weight factor of a link measured from one boundary only.
+        weight_by_visibility: multiply a link's weight by the visible share of its polygon.
+        min_visible: a link whose visible share (occlusion and image border) is below this is
+            invalid.
+    """
+
+    tau_px: float = 1.0
+    min_inliers: int = 3
+    det_eps: float = 1e-9
+    single_edge: bool = True
+    single_edge_weight: float = 0.5
+    weight_by_visibility: bool = True
+    min_visible: float = 0.1
+
+    def __post_init__(self):
+        w = "LineConfig"
+        _check(self.tau_px > 0, f"{w}.tau_px", f"must be > 0, got {self.tau_px!r}")
+        _check(isinstance(self.min_inliers, int) and self.min_inliers >= 2, f"{w}.min_inliers",
+               f"need an int >= 2, got {self.min_inliers!r}")
+        _check(self.det_eps >= 0, f"{w}.det_eps", f"must be >= 0, got {self.det_eps!r}")
+        _check(0 <= self.single_edge_weight <= 1, f"{w}.single_edge_weight",
+               f"must lie in [0, 1], got {self.single_edge_weight!r}")
+        _check(0 <= self.min_visible <= 1, f"{w}.min_visible", f"must lie in [0, 1], got {self.min_visible!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class TipConfig:
+    """Tip features (thesis §4.1 eq. 4.1, §11.1.1).
+
+    Attributes:
+        points: samples along the tip sampler.
+        scope: half length of the tip sampler in ``r``; it is centred on the predicted tip
+            boundary (the refined tip centre plus one radius along the terminal axial line).
+        sigma: Gaussian derivative scale along the tip sampler, samples (0: simple difference).
+        min_strength: weakest accepted tip edge, grey levels per pixel.
+        need_line: a tip counts only when its terminal link's line was measured in this frame,
+            so its sampler lies on the measured axis (eq. 4.1); along the predicted axis alone a
+            misplaced prediction can find another edge. Off by default: on the two-finger
+            sequence the tips it drops cost more than the wrong ones it avoids.
+    """
+
+    points: int = 32
+    scope: float = 1.0
+    sigma: float = 1.0
+    min_strength: float = 8.0
+    need_line: bool = False
+
+    def __post_init__(self):
+        w = "TipConfig"
+        _check(isinstance(self.points, int) and self.points >= 4, f"{w}.points", f"need an int >= 4, got "
+               f"{self.points!r}")
+        _check(self.scope > 0, f"{w}.scope", f"must be > 0, got {self.scope!r}")
+        _check(self.sigma >= 0, f"{w}.sigma", f"must be >= 0, got {self.sigma!r}")
+        _check(self.min_strength >= 0, f"{w}.min_strength", f"must be >= 0, got {self.min_strength!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class ImageConfig:
+    """Everything the image front end needs for one run.
+
+    Attributes:
+        method: the feature search, by name (see :data:`jaxhand.image.SEARCH_NAMES`): "derivative",
+            "gaussian", "width", "width_compensated", "plls", "mwplls", "imwplls" or "wssd" (the
+            thesis's occlusion-aware method, the default).
+        samplers: link samplers and profile sampling.
+        search: feature search parameters.
+        visibility: visibility ordering and windows.
+        lines: line fitting and link validity.
+        tips: tip features.
+        template_min_visible: a view updates a link's template only when at least this share of
+            the link's outline is visible (and then only the samples that show it).
+        template_recentre: re-centre every new template on the axis the template itself shows
+            (the midpoint of its two Gaussian-derivative boundaries, a line per link), so a
+            template taken at a slightly wrong pose does not carry that error into the next
+            frames' matches (template drift, which refreshing at each solved pose otherwise
+            accumulates). A link whose boundaries cannot be found keeps its template uncentred.
+        width_gain: gain g of the phalanx width estimate (thesis appendix E): after each good
+            frame :func:`jaxhand.image.update_widths` moves every link's radius by g times the
+            mean innovation of its width measures at the solved pose, and the front end then
+            places samplers, windows and templates with the estimated radii. 0 (the default)
+            keeps the model's radii; 0.1-0.3 adapts a model to a hand whose phalanges are
+            thicker or thinner than the model's.
+        reacquire_deg: where the prediction shows a link but the search finds no line for it
+            (while its parent link's line is found), search again with the link's joint turned
+            by each of these angles (degrees) both ways and take the line found with the most
+            boundary inliers (not in the documents: a phalanx that turns faster than the
+            filter predicts is found again). Empty: never.
+    """
+
+    method: str = "wssd"
+    samplers: SamplerConfig = SamplerConfig()
+    search: SearchConfig = SearchConfig()
+    visibility: VisibilityConfig = VisibilityConfig()
+    lines: LineConfig = LineConfig()
+    tips: TipConfig = TipConfig()
+    template_min_visible: float = 0.25
+    template_recentre: bool = True
+    width_gain: float = 0.0
+    reacquire_deg: tuple[float, ...] = ()
+
+    def __post_init__(self):
+        from .searches import SEARCH_NAMES
+
+        _check(self.method in SEARCH_NAMES, "ImageConfig.method",
+               f"unknown search {self.method!r}; valid: {', '.join(SEARCH_NAMES)}")
+        _check(0 < self.template_min_visible <= 1, "ImageConfig.template_min_visible",
+               f"must lie in (0, 1], got {self.template_min_visible!r}")
+        _check(0 <= self.width_gain <= 1, "ImageConfig.width_gain", f"must lie in [0, 1], got {self.width_gain!r}")
+        _check(all(0 < a <= 90 for a in self.reacquire_deg), "ImageConfig.reacquire_deg",
+               f"angles must lie in (0, 90] degrees, got {self.reacquire_deg!r}")
+
+    def replace(self, **changes) -> ImageConfig:
+        """A copy with some fields changed (``config.replace(method="gaussian")``)."""
+        return dataclasses.replace(self, **changes)

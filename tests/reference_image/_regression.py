@@ -1,0 +1,107 @@
+"""Line regressions across a link's profiles (thesis appendix D §11.3, used in §4.3.2).
+
+Each fits ``y = c0 + c1 x`` where ``x`` is the profile's number along the link and ``y`` a
+displacement along the profile. All functions are vectorised over leading axes (one fit per
+link), take a mask of the profiles that count, and return ``ok = False`` (with finite zeros)
+where the normal equations are singular (fewer than two distinct x).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["plls", "mwplls", "imwplls", "solve_2x2"]
+
+# |det R| (relative to the squared trace) below which the 2x2 normal equations count as singular.
+_SINGULAR = 1e-12
+
+
+def solve_2x2(R: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Solve ``R c = r`` for stacks of 2x2 systems by Cramer's rule.
+
+    Returns:
+        (c, ok): c with shape (..., 2) (zeros where singular) and the non-singular mask.
+    """
+    det = R[..., 0, 0] * R[..., 1, 1] - R[..., 0, 1] * R[..., 1, 0]
+    scale = (np.abs(R[..., 0, 0]) + np.abs(R[..., 1, 1])) ** 2
+    ok = np.abs(det) > _SINGULAR * np.maximum(scale, 1e-300)
+    safe = np.where(ok, det, 1.0)  # Guard: a singular system gets a dummy denominator, then zeros.
+    c0 = (R[..., 1, 1] * r[..., 0] - R[..., 0, 1] * r[..., 1]) / safe
+    c1 = (R[..., 0, 0] * r[..., 1] - R[..., 1, 0] * r[..., 0]) / safe
+    return np.where(ok[..., None], np.stack([c0, c1], -1), 0.0), ok
+
+
+def _normal_equations(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R = sum_i a_i [[1, x_i], [x_i, x_i^2]] and r = sum_i b_i [1, x_i] over the last axis."""
+    R = np.stack([np.stack([a.sum(-1), (a * x).sum(-1)], -1),
+                  np.stack([(a * x).sum(-1), (a * x * x).sum(-1)], -1)], -2)
+    r = np.stack([b.sum(-1), (b * x).sum(-1)], -1)
+    return R, r
+
+
+def plls(x: np.ndarray, y: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Partial linear least squares (thesis §11.3.1): minimise ``sum_i (y_i - c0 - c1 x_i)^2``
+    over the masked points (errors measured along y only).
+
+    Args:
+        x, y, mask: (..., m) abscissae, ordinates and the points that count.
+
+    Returns:
+        (c, ok): (..., 2) coefficients ``(c0, c1)`` and the solvable mask.
+    """
+    w = mask.astype(float)
+    x = np.broadcast_to(x, y.shape)
+    R, r = _normal_equations(x, w, w * np.where(mask, y, 0.0))
+    return solve_2x2(R, r)
+
+
+def mwplls(x: np.ndarray, ys: np.ndarray, weights: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Modified weighted PLLS (thesis §11.3.2).
+
+    Every point j of every curve i contributes, with cost ``w_ji`` (the surface's amplitude):
+    the partial error of curve i is ``e_i = sum_j w_ji (y_ji - c0 - c1 x_i)`` and ``sum_i e_i^2`` is
+    minimised, which gives
+
+        R = sum_i (sum_j w_ji)^2 [[1, x_i], [x_i, x_i^2]],
+        r = sum_i W_i [1, x_i],   W_i = (sum_j w_ji y_ji)(sum_j w_ji),   c = R^-1 r.
+
+    Args:
+        x: (..., m) curve abscissae.
+        ys: (..., m, n) or (n,) ordinate of each point of each curve.
+        weights: (..., m, n) costs ``w_ji`` (non-negative).
+        mask: (..., m) curves that count.
+
+    Returns:
+        (c, ok) as :func:`plls`.
+    """
+    w = np.where(mask[..., None], weights, 0.0)
+    sw = w.sum(-1)
+    W = (w * ys).sum(-1) * sw
+    R, r = _normal_equations(np.broadcast_to(x, sw.shape), sw * sw, W)
+    return solve_2x2(R, r)
+
+
+def imwplls(x: np.ndarray, ys: np.ndarray, weights: np.ndarray, mask: np.ndarray, halfwidth: float,
+            max_iter: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Iterative MWPLLS (thesis §11.3.3): start from :func:`mwplls`, then refit with only the points
+    within ``halfwidth`` (along y) of the current line, until the line stops moving (1e-9) or
+    ``max_iter`` refits.
+
+    Returns:
+        (c, ok, iterations): as :func:`mwplls`, plus the refits each fit took.
+    """
+    c, ok = mwplls(x, ys, weights, mask)
+    iters = np.zeros(ok.shape, int)
+    active = ok.copy()
+    for _ in range(max_iter):
+        if not active.any():
+            break
+        line = c[..., 0, None] + c[..., 1, None] * np.broadcast_to(x, mask.shape)
+        near = np.abs(ys - line[..., None]) <= halfwidth
+        c_new, ok_new = mwplls(x, ys, np.where(near, weights, 0.0), mask)
+        step = active & ok_new
+        moved = np.abs(c_new - c).max(-1) > 1e-9
+        c = np.where(step[..., None], c_new, c)
+        iters = iters + step
+        active = step & moved
+    return c, ok, iters

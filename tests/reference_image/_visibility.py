@@ -1,0 +1,242 @@
+"""Visibility ordering and window functions (thesis §4.3.3, figs. 4.12-4.18).
+
+Each link's pill is outlined in the image as the convex hull of its two end circles (the
+projected hemisphere outlines; equal radii give a stadium, a perspective camera gives each end its
+own radius), simplified (Douglas-Peucker). Every pill gets the mean depth of its two ends, and
+every pill is cut where nearer pills cover it (Boolean difference, shapely), which leaves the
+truncated polygons of fig. 4.17. Phalanges of one finger (links on one kinematic chain) never cut
+each other, as in the thesis. The window function of a profile is 1 where its samples fall inside
+its link's window polygon: the link's outline grown by ``window_pad`` radii (a strip of
+background), less the nearer pills grown by ``occluder_margin_px``. All geometry calls are
+shapely 2's vectorised array functions; the only Python loop runs over links to merge each one's
+occluders.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import shapely
+
+from ._config import VisibilityConfig
+
+__all__ = ["Visibility", "pill_outlines", "same_chain", "compute_visibility", "window_masks", "convex_edges",
+           "inside_polygons"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Visibility:
+    """The visibility of every link in one view.
+
+    Attributes:
+        outlines: (links,) shapely polygons, the simplified convex hull of each projected pill.
+        depth: (links,) mean depth of each pill (mm; larger is farther).
+        order: (links,) link indices from the farthest to the nearest (thesis fig. 4.15).
+        visible: (links,) truncated polygons: outline less the nearer pills of other chains.
+        windows: (links,) window polygons: grown outline less the grown nearer pills.
+        visible_share: (links,) area of the truncated polygon inside the image over the outline's
+            area (0 for an empty outline).
+    """
+
+    outlines: np.ndarray
+    depth: np.ndarray
+    order: np.ndarray
+    visible: np.ndarray
+    windows: np.ndarray
+    visible_share: np.ndarray
+
+
+def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.ndarray, radius_end: np.ndarray,
+                  arc_points: int, simplify_px: float) -> np.ndarray:
+    """Convex hulls of the projected pills, simplified (thesis figs. 4.13-4.14).
+
+    Args:
+        start_px, end_px: (links, 2) projected link ends.
+        radius_start, radius_end: (links,) radius in pixels at each end.
+        arc_points: vertices per half circle.
+        simplify_px: simplification tolerance.
+
+    Returns:
+        (links,) polygons; links with non-finite input or zero radius give empty polygons.
+    """
+    k = 2 * arc_points
+    a = 2 * np.pi * np.arange(k) / k
+    circle = np.stack([np.cos(a), np.sin(a)], -1)  # (k, 2)
+    s = np.asarray(start_px, float)
+    e = np.asarray(end_px, float)
+    rs = np.asarray(radius_start, float)
+    re = np.asarray(radius_end, float)
+    ok = (np.all(np.isfinite(s), -1) & np.all(np.isfinite(e), -1) & np.isfinite(rs) & np.isfinite(re)
+          & (rs > 0) & (re > 0))
+    cloud = np.concatenate([s[:, None] + rs[:, None, None] * circle, e[:, None] + re[:, None, None] * circle], 1)
+    cloud = np.where(ok[:, None, None], cloud, 0.0)
+    hulls = shapely.convex_hull(shapely.multipoints(cloud))
+    hulls = shapely.simplify(hulls, simplify_px) if simplify_px > 0 else hulls
+    return np.where(ok, hulls, shapely.Polygon())
+
+
+def same_chain(link_frame, ancestors: np.ndarray) -> np.ndarray:
+    """(links, links) True where two links lie on one kinematic chain (one is above the other)."""
+    f = np.asarray(link_frame, int)
+    a = np.asarray(ancestors, bool)[np.ix_(f, f)]
+    return a | a.T
+
+
+def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarray, radius_start: np.ndarray,
+                       radius_end: np.ndarray, chain: np.ndarray, image_size: tuple[int, int],
+                       config: VisibilityConfig) -> Visibility:
+    """Depth-sort the pills and cut each by the nearer pills of other chains (thesis §4.3.3).
+
+    Args:
+        start_px, end_px: (links, 2) projected link ends.
+        depth: (links, 2) depth of the two ends (mm).
+        radius_start, radius_end: (links,) radius in pixels at each end.
+        chain: (links, links) :func:`same_chain`.
+        image_size: (width, height), for the share of each link inside the image.
+        config: visibility settings.
+    """
+    outlines = pill_outlines(start_px, end_px, radius_start, radius_end, config.arc_points, config.simplify_px)
+    mean_depth = np.nan_to_num(np.asarray(depth, float).mean(-1), nan=np.inf, posinf=np.inf, neginf=np.inf)
+    order = np.argsort(-mean_depth, kind="stable")
+    radius = 0.5 * (np.nan_to_num(radius_start) + np.nan_to_num(radius_end))
+    grown = shapely.buffer(outlines, config.window_pad * radius, quad_segs=4)
+    L = len(outlines)
+    empty = shapely.is_empty(outlines)
+    if config.occlusion and L > 1:
+        covers = shapely.buffer(outlines, config.occluder_margin_px, quad_segs=4) if config.occluder_margin_px > 0 \
+            else outlines
+        # Only nearer pills of other chains whose bounding boxes meet this one's can cut it.
+        b = np.nan_to_num(shapely.bounds(grown), nan=0.0)
+        c = np.nan_to_num(shapely.bounds(covers), nan=0.0)
+        meet = ((c[None, :, 0] <= b[:, None, 2]) & (c[None, :, 2] >= b[:, None, 0])
+                & (c[None, :, 1] <= b[:, None, 3]) & (c[None, :, 3] >= b[:, None, 1]))
+        nearer = (mean_depth[None, :] < mean_depth[:, None]) & ~np.asarray(chain, bool) & ~empty[None, :] & meet
+        none = shapely.Polygon()
+        # Links with the same occluders (the phalanges of one finger behind another, often) share
+        # one union of them.
+        unions: dict[bytes, tuple] = {}
+        occl = np.empty(L, dtype=object)
+        occl_grown = np.empty(L, dtype=object)
+        for i in range(L):
+            key = nearer[i].tobytes()
+            if key not in unions:
+                unions[key] = ((shapely.union_all(outlines[nearer[i]]), shapely.union_all(covers[nearer[i]]))
+                               if nearer[i].any() else (none, none))
+            occl[i], occl_grown[i] = unions[key]
+        visible = shapely.difference(outlines, occl)
+        windows = shapely.difference(grown, occl_grown)
+    else:
+        visible, windows = outlines.copy(), grown
+    w, h = image_size
+    frame = shapely.box(-0.5, -0.5, w - 0.5, h - 0.5)
+    area = shapely.area(outlines)
+    share = np.where(area > 0, shapely.area(shapely.intersection(visible, frame)) / np.where(area > 0, area, 1.0), 0.0)
+    return Visibility(outlines=outlines, depth=mean_depth, order=order, visible=visible, windows=windows,
+                      visible_share=np.clip(share, 0.0, 1.0))
+
+
+def window_masks(polygons: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Window functions: True where a sample lies inside its link's polygon (thesis fig. 4.18).
+
+    Args:
+        polygons: (links,) window polygons.
+        points: (links, ..., 2) sample positions of each link's profiles (NaN gives False).
+
+    Returns:
+        (links, ...) boolean windows, from one vectorised ``shapely.contains_xy`` call.
+    """
+    pts = np.asarray(points, float)
+    geoms = np.asarray(polygons, dtype=object).reshape((-1,) + (1,) * (pts.ndim - 2))
+    shapely.prepare(geoms)
+    finite = np.all(np.isfinite(pts), -1)
+    x = np.where(finite, pts[..., 0], 0.0)
+    y = np.where(finite, pts[..., 1], 0.0)
+    return shapely.contains_xy(geoms, x, y) & finite
+
+
+def convex_edges(polygons: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Edges of convex polygons padded to one length, oriented so the interior lies to the left.
+
+    Returns:
+        (start, vector, present): (n, V, 2) edge starts and vectors (padding repeats edge 0), and
+        (n,) the polygon is non-empty; None when a polygon is neither empty nor a convex polygon
+        without holes (then the caller falls back to shapely).
+    """
+    geoms = np.asarray(polygons, dtype=object).reshape(-1)
+    n = len(geoms)
+    present = ~shapely.is_empty(geoms)
+    if not present.any():
+        return np.zeros((n, 1, 2)), np.zeros((n, 1, 2)), present
+    if np.any(shapely.get_type_id(geoms[present]) != 3) or np.any(shapely.get_num_interior_rings(geoms[present]) > 0):
+        return None
+    coords, index = shapely.get_coordinates(shapely.get_exterior_ring(geoms), return_index=True)
+    counts = np.bincount(index, minlength=n) - 1  # rings are closed: edges = coordinates - 1
+    if np.any(counts[present] < 3):
+        return None
+    V = int(counts.max())
+    first = np.concatenate([[0], np.cumsum(counts + 1)[:-1]])
+    k = np.arange(V)
+    # Edge k of polygon i runs from coordinate first[i] + k to first[i] + k + 1; padding repeats edge 0.
+    kk = np.where(k[None, :] < counts[:, None], k[None, :], 0)
+    a_idx = np.where(present[:, None], first[:, None] + kk, 0)
+    a = coords[a_idx]
+    e = coords[np.where(present[:, None], a_idx + 1, 0)] - a
+    # Orientation from the signed area; a clockwise ring is flipped to counter-clockwise.
+    cross_ae = a[..., 0] * e[..., 1] - a[..., 1] * e[..., 0]
+    valid_edge = k[None, :] < counts[:, None]
+    area2 = np.where(valid_edge, cross_ae, 0.0).sum(-1)
+    if np.any(area2[present] == 0):
+        return None
+    sign = np.where(area2 < 0, -1.0, 1.0)[:, None, None]
+    a = np.where(sign < 0, a + e, a)
+    e = e * sign
+    # Convex: every turn between consecutive edges is to the left (or straight).
+    nxt = np.roll(e, -1, axis=1)
+    nxt = np.where((k[None, :] == counts[:, None] - 1)[..., None], e[:, :1], nxt)
+    turn = e[..., 0] * nxt[..., 1] - e[..., 1] * nxt[..., 0]
+    if np.any((turn < 0) & valid_edge & present[:, None]):
+        return None
+    return a, e, present
+
+
+def inside_polygons(polygons: np.ndarray, points: np.ndarray, *, tol: float = 1e-9, edges=False) -> np.ndarray:
+    """(..., n) True where each point lies strictly inside each of ``n`` convex polygons.
+
+    The same predicate as ``shapely.contains_xy`` (boundary points are outside, NaN points are
+    outside every polygon), computed in NumPy from edge cross products for convex polygons
+    (pill outlines are simplified convex hulls); points within ``tol`` (relative) of an edge line
+    and non-convex input are decided by shapely itself.
+
+    Args:
+        polygons: (n,) polygons (empty ones contain nothing).
+        points: (..., 2) positions (x, y).
+        edges: ``convex_edges(polygons)`` when already computed (False: compute them here).
+    """
+    geoms = np.asarray(polygons, dtype=object).reshape(-1)
+    pts = np.asarray(points, float)
+    lead = pts.shape[:-1]
+    flat = pts.reshape(-1, 2)
+    finite = np.all(np.isfinite(flat), -1)
+    x = np.where(finite, flat[:, 0], 0.0)
+    y = np.where(finite, flat[:, 1], 0.0)
+    edges = convex_edges(geoms) if edges is False else edges
+    if edges is None:
+        shapely.prepare(geoms)
+        out = shapely.contains_xy(geoms[None, :], x[:, None], y[:, None]) & finite[:, None]
+        return out.reshape(lead + (len(geoms),))
+    a, e, present = edges
+    # cross(e, p - a) > 0 on the interior side of every edge: (points, n, V).
+    c = (e[None, :, :, 0] * (y[:, None, None] - a[None, :, :, 1])
+         - e[None, :, :, 1] * (x[:, None, None] - a[None, :, :, 0]))
+    m = c.min(-1)
+    out = (m > 0) & present[None, :] & finite[:, None]
+    # Near an edge, rounding could differ from GEOS's robust predicate: ask shapely there.
+    extent = np.abs(a).max((1, 2))[None, :] + 1.0
+    scale = np.abs(e).max((1, 2))[None, :] * (np.abs(x)[:, None] + np.abs(y)[:, None] + extent)
+    near = (np.abs(m) <= tol * scale) & present[None, :] & finite[:, None]
+    if near.any():
+        p, g = np.nonzero(near)
+        shapely.prepare(geoms)
+        out[p, g] = shapely.contains_xy(geoms[g], x[p], y[p])
+    return out.reshape(lead + (len(geoms),))

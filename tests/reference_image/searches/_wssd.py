@@ -1,0 +1,206 @@
+"""Windowed SSD against stored templates (the thesis's proposed method, §4.3.1-4.3.2).
+
+The only search built for occlusion. Each profile is compared with the template stored for it
+from an earlier view, but only where the link is visible: the window function (thesis §4.3.3)
+masks the template, ``m(j) = v(j) t(j)``, and the windowed SSD is taken over the window only
+(§4.3.1); a template taken from a partly hidden view also masks its own hidden samples. Here the
+template slides over the current profile, ``I(j + s)`` against ``t(j)``, and the sum is divided by
+the number of terms, because near the ends of a profile some shifts see fewer samples. The
+curves of one link side by side make a WSSD surface whose valley is a line (the phalanx is
+straight). The valley is found as in §4.3.2:
+
+1. start every profile at displacement 0 (the prediction);
+2. step each displacement one sample against the sign of the surface's gradient there,
+   ``y <- y - sign(g)``;
+3. fit a PLLS line ``y = c0 + c1 x`` through the stepped points and round it to whole samples;
+4. repeat 2-3 until the rounded line stops changing (or ``max_iter``).
+
+With ``subsample`` each profile's displacement is then refined to the vertex of the parabola
+through the surface's smallest value near the line and its neighbours, and a last PLLS line is
+fitted through the refined points (not in the thesis, whose offsets are whole samples). The
+boundaries are put one predicted radius either side of the valley line (edges extrapolated
+from the phalanx width).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from .._config import SearchConfig
+from .._regression import _normal_equations, plls, solve_2x2
+from ._common import (
+    Edges,
+    Profiles,
+    edges_about_centres,
+    gaussian_derivative,
+    masked_argmax,
+    parabola_vertex,
+    per_pixel,
+)
+
+__all__ = ["wssd_valley", "wssd_surface"]
+
+
+def wssd_surface(values: np.ndarray, usable: np.ndarray, templates: np.ndarray, window: np.ndarray, max_shift: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean windowed squared difference of every profile against its template at every shift.
+
+    ``WSSD(s) = mean over j with v(j) and I(j + s) usable of (I(j + s) - t(j))^2``.
+
+    Args:
+        values, usable: (..., n) current profiles and their usable samples.
+        templates: (..., n) stored templates.
+        window: (..., n) visibility window (applied to the template).
+        max_shift: S; shifts run over -S..S.
+
+    Returns:
+        (W, counts, shifts): W (..., 2 S + 1) (inf where no term counts), the number of terms of
+        each entry, and the shifts.
+    """
+    S = int(max_shift)
+    pad = [(0, 0)] * (values.ndim - 1) + [(S, S)]
+    img = sliding_window_view(np.pad(values, pad), values.shape[-1], axis=-1)  # (..., 2S+1, n): I(j + s)
+    ok = sliding_window_view(np.pad(usable, pad), values.shape[-1], axis=-1) & window[..., None, :]
+    diff = np.where(ok, img - templates[..., None, :], 0.0)
+    counts = ok.sum(-1)
+    W = np.where(counts > 0, (diff * diff).sum(-1) / np.maximum(counts, 1), np.inf)
+    return W, counts, np.arange(-S, S + 1)
+
+
+def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tuple[np.ndarray, np.ndarray]:
+    """Unit-step valley descent with PLLS and rounding (§4.3.2), all links at once.
+
+    Returns:
+        (yhat, fit_ok): (links, samplers) integer displacements on the rounded line, and the links
+        whose line could be fitted.
+    """
+    L, M, K = W.shape
+    x = np.arange(M, dtype=float)
+    # Non-finite entries (no term counted) become a wall higher than any real value, so the
+    # gradient points away from them.
+    finite = np.isfinite(W)
+    wall = np.where(finite, W, -np.inf).max(initial=0.0) * 2 + 1.0
+    Wf = np.where(finite, W, wall)
+    yhat = np.zeros((L, M), int)
+    fit_ok = curve_ok.sum(-1) >= 2
+    active = fit_ok.copy()
+    # The PLLS mask is the same every iteration: its normal matrix is built once (the same
+    # arithmetic as :func:`plls`, so the lines are bit for bit the same).
+    w = curve_ok.astype(float)
+    xb = np.broadcast_to(x, (L, M))
+    R, _ = _normal_equations(xb, w, w)
+    li, mi = np.arange(L)[:, None], np.arange(M)[None, :]
+    # Each link's next line depends on its own displacements only, so a link whose line comes
+    # back to an earlier one cycles from there on: its line after ``max_iter`` steps is known at
+    # once, and the link leaves the loop (the result is the same as iterating on).
+    history = [yhat]
+    for n in range(max_iter):
+        if not active.any():
+            break
+        k = yhat + S
+        up = Wf[li, mi, np.minimum(k + 1, K - 1)]
+        down = Wf[li, mi, np.maximum(k - 1, 0)]
+        g = up - down
+        y = yhat - np.sign(g)
+        b = w * np.where(curve_ok, y, 0.0)
+        c, ok = solve_2x2(R, np.stack([b.sum(-1), (b * xb).sum(-1)], -1))
+        new = np.clip(np.rint(c[:, 0, None] + c[:, 1, None] * x), -S, S).astype(int)
+        step = active & ok
+        changed = np.any((new != yhat) & curve_ok, axis=-1)
+        yhat = np.where(step[:, None], new, yhat)
+        fit_ok = fit_ok & np.where(active, ok, True)
+        active = step & changed
+        seen = np.all(np.stack(history) == yhat, axis=-1) & active  # (steps so far, links)
+        history.append(yhat)
+        if seen.any():
+            yhat = yhat.copy()
+            t = n + 1
+            for link in np.nonzero(seen.any(0))[0]:
+                t0 = int(np.nonzero(seen[:, link])[0][0])
+                yhat[link] = history[t0 + (max_iter - t0) % (t - t0)][link]
+            active = active & ~seen.any(0)
+    return yhat, fit_ok
+
+
+def _refine(W: np.ndarray, yhat: np.ndarray, curve_ok: np.ndarray, S: int, subsample: bool
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sub-sample valley points near the rounded line and the last PLLS line through them.
+
+    Returns:
+        (y, fit_ok, wmin): the line's displacement at each profile, the links fitted and each
+        profile's smallest WSSD near the line (inf where that minimum lies on the edge of the
+        searched shifts).
+    """
+    L, M, K = W.shape
+    x = np.arange(M, dtype=float)
+    idx = yhat + S
+    near = idx[..., None] + np.arange(-2, 3)  # the five entries around the rounded line
+    inside = (near >= 0) & (near < K)
+    vals = np.where(inside, np.take_along_axis(W, np.clip(near, 0, K - 1), -1), np.inf)
+    j = np.argmin(vals, -1)
+    k = np.clip(idx + j - 2, 0, K - 1)
+    wmin = np.take_along_axis(W, k[..., None], -1)[..., 0]
+    y = (k - S).astype(float)
+    if subsample:
+        km, kp = np.clip(k - 1, 0, K - 1), np.clip(k + 1, 0, K - 1)
+        wm = np.take_along_axis(W, km[..., None], -1)[..., 0]
+        wp = np.take_along_axis(W, kp[..., None], -1)[..., 0]
+        inner = (k > 0) & (k < K - 1) & np.isfinite(wm) & np.isfinite(wp) & np.isfinite(wmin)
+        y = y + np.where(inner, parabola_vertex(np.where(inner, wm, 0.0), np.where(inner, wmin, 0.0),
+                                                np.where(inner, wp, 0.0)), 0.0)
+    # A minimum on the edge of the searched shifts is no valley: the phalanx lies farther away.
+    use = curve_ok & np.isfinite(wmin) & (k > 0) & (k < K - 1)
+    c, ok = plls(x, y, use)
+    return c[:, 0, None] + c[:, 1, None] * x, ok, np.where(use, wmin, np.inf)
+
+
+def _snap_to_edges(profiles: Profiles, pos: np.ndarray, window: np.ndarray, config: SearchConfig) -> np.ndarray:
+    """Move each boundary to the strongest Gaussian-derivative edge of its sign within
+    ``config.snap`` radii, where the boundary lies against the background
+    (``profiles.boundary_clear``) and the sample just inside it lies in the window (the link is
+    seen there, not a nearer finger); elsewhere the boundary stays where it was."""
+    d, d_ok, at = gaussian_derivative(profiles.values, profiles.usable, config.sigma)
+    n = profiles.shape[-1]
+    clear = np.ones(pos.shape, bool) if profiles.boundary_clear is None else profiles.boundary_clear
+    out = pos.copy()
+    for side, inward in ((0, 1.0), (1, -1.0)):
+        p = pos[..., side]
+        inside = np.clip(np.rint(p + inward), 0, n - 1).astype(int)
+        seen = np.take_along_axis(window, inside[..., None], -1)[..., 0] & clear[..., side]
+        score = (config.sign if side == 0 else -config.sign) * d
+        allowed = d_ok & (np.abs(at - p[..., None]) <= config.snap * profiles.radius)
+        k, val, off = masked_argmax(score, allowed, config.subsample)
+        found = np.isfinite(val)
+        strong = found & (per_pixel(np.where(found, val, 0.0), profiles.spacing_px) >= config.min_strength)
+        out[..., side] = np.where(seen & strong, at[k] + off, p)
+    return out
+
+
+def wssd_valley(profiles: Profiles, config: SearchConfig) -> Edges:
+    """Boundaries from the valley line of the windowed-SSD surface against stored templates."""
+    L, M, N = profiles.shape
+    if profiles.templates is None or profiles.template_valid is None:
+        templates, tvalid = np.zeros((L, M, N)), np.zeros(L, bool)
+    else:
+        templates, tvalid = profiles.templates, profiles.template_valid
+    window = profiles.window & profiles.usable
+    if profiles.template_mask is not None:
+        window = window & profiles.template_mask
+    S = profiles.max_shift(config.max_shift)
+    W, counts, shifts = wssd_surface(profiles.values, profiles.usable, templates, window, S)
+    enough = window.sum(-1) >= config.min_window * N
+    # Contrast of the windowed template: a flat one holds no boundary to match.
+    wn = np.maximum(window.sum(-1), 1)
+    mean = np.where(window, templates, 0.0).sum(-1) / wn
+    contrast = np.sqrt(np.where(window, (templates - mean[..., None]) ** 2, 0.0).sum(-1) / wn)
+    curve_ok = tvalid[:, None] & enough & (contrast >= config.min_strength)
+    yhat, fit_ok = _descend(W, curve_ok, S, config.max_iter)
+    y, ok, wmin = _refine(W, yhat, curve_ok, S, config.subsample)
+    match = np.sqrt(np.where(np.isfinite(wmin), wmin, np.inf)) <= config.max_mismatch * contrast
+    valid = curve_ok & (fit_ok & ok)[:, None] & match & (np.abs(y) <= S)
+    pos = edges_about_centres(profiles.centre + y, 2 * profiles.radius)
+    if config.snap > 0:
+        pos = _snap_to_edges(profiles, pos, window, config)
+    return Edges(pos=pos, strength=np.repeat(contrast[..., None], 2, -1), valid=np.repeat(valid[..., None], 2, -1),
+                 surface=W, shifts=shifts)
