@@ -23,7 +23,8 @@ from jaxtyping import Array, Float
 from ._errors import InputError
 from .model import Model
 
-__all__ = ["DipPipCoupling", "SoftLimits", "dip_pip_coupling", "soft_limits", "stack_priors"]
+__all__ = ["DipPipCoupling", "SoftLimits", "TemporalPrior", "dip_pip_coupling", "soft_limits", "temporal_prior",
+           "stack_priors"]
 
 #: Default DIP/PIP flexion ratio (DIP about 2/3 of PIP).
 DIP_PIP_RATIO = 2.0 / 3.0
@@ -158,3 +159,37 @@ def stack_priors(priors, q: Float[Array, " nq"]) -> Float[Array, " r"]:
     """The residuals of several priors, concatenated in order (an empty tuple gives shape (0,))."""
     parts = [p(q) for p in priors]
     return jnp.concatenate(parts) if parts else jnp.zeros((0,), q.dtype)
+
+
+class TemporalPrior(eqx.Module):
+    """A Gaussian prior around a predicted state: ``r = weight * (q - q_pred)`` per q entry.
+
+    Traced: ``q_pred`` (q units) and ``weight`` (1 / sigma per entry, 0 where there is no prior),
+    so a tracker builds one per frame without recompiling. Weighted by how poorly each joint was
+    seen it keeps unobserved joints at the prediction and leaves observed ones to the images
+    (thesis ch. 7: a compromise between the solve and the prediction).
+    """
+
+    q_pred: Float[Array, " nq"] = eqx.field(converter=jnp.asarray)
+    weight: Float[Array, " nq"] = eqx.field(converter=jnp.asarray)
+
+    def __check_init__(self):
+        if self.q_pred.shape != self.weight.shape or self.q_pred.ndim != 1:
+            raise ValueError("TemporalPrior: q_pred and weight need the same shape (nq,)")
+
+    def __call__(self, q: Float[Array, " nq"]) -> Float[Array, " nq"]:
+        return self.weight * (q - self.q_pred)
+
+
+def temporal_prior(model: Model, q_pred, *, sigma_deg: float = 10.0, sigma_mm: float = 20.0) -> TemporalPrior:
+    """A :class:`TemporalPrior` at ``q_pred`` with one sigma for angles (deg) and one for lengths
+    (mm); the entries of a free base's quaternion get none.
+
+    Raises:
+        InputError: a sigma is not a positive number.
+    """
+    if not (sigma_deg > 0 and sigma_mm > 0):
+        raise InputError(f"temporal prior: sigmas must be > 0, got {sigma_deg} deg, {sigma_mm} mm")
+    kinds = np.asarray(model.q_kinds)
+    weight = np.where(kinds == "angle", 1.0 / np.radians(sigma_deg), np.where(kinds == "length", 1.0 / sigma_mm, 0.0))
+    return TemporalPrior(q_pred=jnp.asarray(q_pred), weight=jnp.asarray(weight, dtype=jnp.asarray(q_pred).dtype))

@@ -58,16 +58,20 @@ class ResidualArgs(eqx.Module):
         features: one :class:`~jaxhand.features.Features` per camera (traced arrays).
         fractions: (K,) fractions along each link axis of the link residual points (traced; K
             is static and sets the residual length).
+        priors: pose priors stacked under the image residuals, each an ``equinox.Module`` called
+            as ``prior(q) -> residuals`` (e.g. :mod:`jaxhand.priors`; a residual of 1 is one
+            prior sigma); which priors there are is static, their numbers traced.
     """
 
     model: Model
     cameras: tuple
     features: tuple
     fractions: Float[Array, " K"]
+    priors: tuple = ()
 
 
 def make_residual_args(model: Model, cameras, features, link_fractions=DEFAULT_LINK_FRACTIONS, *,
-                       validate: bool = True) -> ResidualArgs:
+                       validate: bool = True, priors: tuple = ()) -> ResidualArgs:
     """Bundle model, rig, features and link-point fractions for :func:`residuals`.
 
     Raises:
@@ -79,7 +83,7 @@ def make_residual_args(model: Model, cameras, features, link_fractions=DEFAULT_L
     fr = np.asarray(link_fractions, dtype=float).reshape(-1)
     if fr.size == 0 or not np.all(np.isfinite(fr)) or np.any((fr < 0) | (fr > 1)):
         raise InputError(f"link_fractions: expected one or more numbers in [0, 1], got {link_fractions!r}")
-    return ResidualArgs(model=model, cameras=rig, features=feats, fractions=jnp.asarray(fr))
+    return ResidualArgs(model=model, cameras=rig, features=feats, fractions=jnp.asarray(fr), priors=tuple(priors))
 
 
 def _camera_residuals(model: Model, camera, feats: Features, pose, fractions) -> Float[Array, " r"]:
@@ -115,7 +119,7 @@ def residuals(q: Float[ArrayLike, " nq"], args: ResidualArgs) -> Float[Array, " 
     """The stacked residual vector at state q (optimistix signature ``fn(y, args)``), pixels."""
     pose = pose_at(args.model, q)
     return jnp.concatenate([_camera_residuals(args.model, cam, f, pose, args.fractions)
-                            for cam, f in zip(args.cameras, args.features)])
+                            for cam, f in zip(args.cameras, args.features)] + [p(q) for p in args.priors])
 
 
 def cost(q: Float[ArrayLike, " nq"], args: ResidualArgs) -> Float[Array, ""]:
@@ -226,11 +230,14 @@ def residuals_and_jacobian(q: Float[ArrayLike, " nq"], args: ResidualArgs) -> tu
         J_link = (jnp.einsum("lkd,lkdq->lkq", normal_world, J_world[nt:].reshape(nl, K, 3, -1))
                   * sqrt_line_w[:, None, None])
         Js += [J_tip.reshape(2 * nt, -1), J_link.reshape(nl * K, -1)]
+    for prior in args.priors:   # small functions of q alone: forward-mode autodiff is cheap
+        rs.append(prior(q))
+        Js.append(jax.jacfwd(prior)(q))
     return jnp.concatenate(rs), jnp.concatenate(Js)
 
 
 def n_residuals(model: Model, n_cameras: int, n_fractions: int) -> int:
-    """Length of the residual vector."""
+    """Length of the image residual vector (the priors of :class:`ResidualArgs` come after it)."""
     return n_cameras * (2 * model.n_tips + n_fractions * model.n_links)
 
 

@@ -5,8 +5,17 @@ import numpy as np
 import pytest
 from helpers import CompileCounter
 
+import jaxhand as jh
+from jaxhand.features import features_from_pose
 from jaxhand.model import builtin_model
-from jaxhand.priors import dip_pip_coupling, soft_limits, stack_priors
+from jaxhand.priors import dip_pip_coupling, soft_limits, stack_priors, temporal_prior
+from jaxhand.residuals import (
+    DEFAULT_LINK_FRACTIONS,
+    make_residual_args,
+    n_residuals,
+    residuals,
+    residuals_and_jacobian,
+)
 
 
 @pytest.fixture(scope="module")
@@ -99,3 +108,36 @@ def test_priors_are_jit_compatible_and_retrace_free_for_new_weights(hand21):
 
 def test_stack_priors_empty():
     assert stack_priors((), jnp.zeros(3)).shape == (0,)
+
+
+def test_temporal_prior_golden_and_quaternion_free():
+    model = builtin_model("hand27")
+    q_pred = np.asarray(model.q_default, float)
+    prior = temporal_prior(model, q_pred, sigma_deg=5.0, sigma_mm=2.0)
+    q = q_pred.copy()
+    q[model.q_names.index("index_pip")] += np.radians(10.0)
+    q[model.q_names.index("palm_tx")] += 4.0
+    r = np.asarray(prior(jnp.asarray(q)))
+    assert r[model.q_names.index("index_pip")] == pytest.approx(2.0)   # 10 deg at sigma 5 deg
+    assert r[model.q_names.index("palm_tx")] == pytest.approx(2.0)     # 4 mm at sigma 2 mm
+    assert np.all(r[:4] == 0.0)                                        # the quaternion has no prior
+    with pytest.raises(jh.InputError, match="sigmas must be > 0"):
+        temporal_prior(model, q_pred, sigma_deg=0.0)
+
+
+@pytest.mark.parametrize("jacobian", ["autodiff", "geometric"])
+def test_priors_stack_under_the_image_residuals_with_their_jacobian(jacobian):
+    model = builtin_model("two_fingers")
+    cam = jh.Orthographic.fit(np.asarray(jh.forward(model, model.q_default).link_end))
+    q_true = np.asarray(model.q_default, float) + np.radians([-10, -20, -15, -5, -30, -20])
+    feats = features_from_pose(model, cam, q_true)
+    priors = (dip_pip_coupling(model), temporal_prior(model, model.q_default, sigma_deg=20.0))
+    args = make_residual_args(model, cam, feats, priors=priors)
+    plain = make_residual_args(model, cam, feats)
+    q = jnp.asarray(q_true)
+    r, J = residuals_and_jacobian(q, args)
+    n = n_residuals(model, 1, len(DEFAULT_LINK_FRACTIONS))
+    assert r.shape == (n + 2 + model.n_q,) and np.array_equal(np.asarray(r[:n]), np.asarray(residuals(q, plain)))
+    assert np.allclose(np.asarray(r[n:]), np.asarray(stack_priors(priors, q)), rtol=0, atol=1e-12)
+    assert np.allclose(np.asarray(J), np.asarray(jax.jacfwd(residuals)(q, args)), rtol=0, atol=1e-9)
+    assert np.allclose(np.asarray(residuals(q, args)), np.asarray(r), rtol=0, atol=1e-12)
