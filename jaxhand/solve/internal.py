@@ -6,10 +6,12 @@ change with the package; users call :func:`jaxhand.fit`.
   host, and returns the static builder of the compiled program with the config it runs with;
 - :func:`fit_traced` is the body of :func:`jaxhand.fit` (no validation, no jit), to be traced
   inside a caller's program (a robust loop, a frame step);
+- :func:`check_config` is the boundary check of a :class:`~jaxhand.FitConfig` that
+  :func:`jaxhand.fit` runs (for configs that carry one, such as the tracker's);
 - :data:`JACOBIANS` lists the values of :attr:`~jaxhand.FitConfig.jacobian`.
 """
 
-from ._config import JACOBIANS
+from ._config import JACOBIANS, check_config
 from ._fit import fit_traced, solver_program
 
-__all__ = ["JACOBIANS", "fit_traced", "solver_program"]
+__all__ = ["JACOBIANS", "check_config", "fit_traced", "solver_program"]
