@@ -121,12 +121,12 @@ def _track(args) -> int:
     from .io import parse_pose
     from .track import track_sequence
 
+    config = track_config_from_args(args)   # first: a bad settings file fails before any frame is read
     model, cameras, sources, truth, synth = _resolve(args)
     if args.init is None and synth is not None:
         q0 = np.asarray(synth.q[0])
     else:
         q0 = parse_pose(model, args.init)
-    config = track_config_from_args(args)
     summary = track_sequence(model, cameras, sources, q0, args.out, config=config, truth=truth,
                              video=not args.no_video, max_frames=args.max_frames)
     print_summary(summary, Path(args.out))

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 import shapely
 
-from jaxhand.cli_track import image_extractor
 from jaxhand.image import ImageConfig, WindowOutlines, as_grey, extract_features
 from jaxhand.image._extract import _observe, _off_other_links
 from jaxhand.image._regression import plls
 from jaxhand.image._visibility import convex_edges, inside_polygons, same_chain, window_masks
 from jaxhand.image.searches._wssd import _descend
 from jaxhand.render import RenderConfig, make_preset, render_frame
+from jaxhand.track import ImageFrontEnd
 
 
 def _off_other_links_union(obs, points, links=None):
@@ -173,8 +173,6 @@ def test_window_outlines_are_the_eager_coordinates(hand27):
     with pytest.raises(IndexError):
         lazy[2]
     # what the tracker's front end hands to the overlay video
-    extract = image_extractor(seq.model, seq.cameras, config)
-    _, _, info = extract(images, q, None)
-    windows = info.get("windows")
+    windows = ImageFrontEnd(seq.model, seq.cameras, config).extract(images, q, None, 0).diagnostics.windows
     assert len(windows) == 2 and all(np.asarray(p).shape[-1] == 2 for p in windows[0])
     np.testing.assert_array_equal(np.concatenate(windows[1]), np.concatenate(eager[1]))

@@ -121,7 +121,7 @@ def _tracker_fit() -> FitConfig:
     return FitConfig(max_steps=20, jacobian="geometric")
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class TrackConfig:
     """Every setting of a tracking run (:class:`~jaxhand.Tracker`, :func:`~jaxhand.track_sequence`).
 
@@ -164,6 +164,12 @@ class TrackConfig:
               f"expected an integer >= 0, got {self.reextract!r}")
         _need(isinstance(self.refresh_templates, bool), "refresh_templates",
               f"expected true or false, got {self.refresh_templates!r}")
+
+    def __eq__(self, other) -> bool:   # by value: FitConfig holds arrays
+        return isinstance(other, TrackConfig) and config_to_dict(self) == config_to_dict(other)
+
+    def __hash__(self) -> int:
+        return hash(config_to_toml(self))
 
     def merged(self, changes: dict) -> TrackConfig:
         """A copy with the nested mapping ``changes`` (as in :func:`config_to_dict`) applied."""
