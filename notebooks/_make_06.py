@@ -119,7 +119,7 @@ def track(extract, config):
 
 
 config = TrackConfig(solver="bounded", filter=FilterConfig(theta=0.85), reextract=1)  # theta per frame at 25 fps
-print(f"g-h-k discount per frame at {1 / dt_s:.0f} fps: {config.theta ** (config.theta_rate_hz * dt_s):.3f}")
+print(f"g-h-k discount per frame at {1 / dt_s:.0f} fps: {config.filter.theta_per_frame(dt_s):.3f}")
 runs = {}
 for label, extract in (("image (wssd)", ImageFrontEnd(m, seq.cameras, jh.ImageConfig(method="wssd"))),
                        ("exact features + 0.5 px", ExactFrontEnd(m, seq.cameras, seq.q, noise_px=0.5))):
