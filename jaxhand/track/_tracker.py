@@ -160,8 +160,8 @@ class Tracker:
             t1 = time.perf_counter()
             (q_meas, filtered, scalars), ghk_next = self._program(self._feature_arrays(extracted.features), ghk,
                                                                   state.q_last, q_start)
-            q_meas, filtered = np.asarray(q_meas), np.asarray(filtered)
-            out = dict(zip(SCALARS, np.asarray(scalars).tolist()))
+            q_pred_host, q_meas, filtered, scalars = jax.device_get((q_pred, q_meas, filtered, scalars))  # one fetch
+            out = dict(zip(SCALARS, scalars.tolist()))
             t2 = time.perf_counter()
             t_features, t_solve = t_features + (t1 - t0), t_solve + (t2 - t1)
             if not out["features_ok"] or out["lost"]:  # nothing better to search around
@@ -178,7 +178,7 @@ class Tracker:
             timings["templates"] = time.perf_counter() - t3
         diag = extracted.diagnostics
         timings.update({f"features.{k}": v for k, v in diag.timings_s.items()})
-        report = StepReport(frame=frame, time_s=time_s, q_pred=np.asarray(q_pred), q_solved=q_meas,
+        report = StepReport(frame=frame, time_s=time_s, q_pred=np.asarray(q_pred_host), q_solved=q_meas,
                             q_filtered=filtered, cost=out["cost"] if ok else float("nan"), rms_px=out["rms_px"],
                             iterations=int(out["iterations"]), status=STATUS_NAMES[int(out["status"])],
                             valid_share=out["valid_share"], confidence=out["confidence"], lost=lost,
