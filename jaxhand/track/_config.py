@@ -259,7 +259,8 @@ def _toml_value(v) -> str:
 
 
 def _toml_lines(d: dict, prefix: tuple) -> list[str]:
-    lines = [f"{k} = {_toml_value(v)}" for k, v in d.items() if not isinstance(v, dict)]
+    # TOML has no null: a None is left out, and reading the file gives the field's default back
+    lines = [f"{k} = {_toml_value(v)}" for k, v in d.items() if not isinstance(v, dict) and v is not None]
     for k, v in d.items():
         if isinstance(v, dict):
             lines += ["", f"[{'.'.join(prefix + (k,))}]"] + _toml_lines(v, prefix + (k,))
