@@ -25,6 +25,7 @@ prints the mean joint error and frames before loss per run and saves
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -38,11 +39,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import RESULTS, environment, write_json  # noqa: E402
 
-from jaxhand.cli_track import image_extractor  # noqa: E402
 from jaxhand.image import ImageConfig  # noqa: E402
 from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402
-from jaxhand.run import accuracy_summary  # noqa: E402
-from jaxhand.track import TrackConfig, Tracker, exact_extractor  # noqa: E402
+from jaxhand.track import (  # noqa: E402
+    ExactFrontEnd,
+    ImageFrontEnd,
+    TrackConfig,
+    Tracker,
+    accuracy_summary,
+    config_to_dict,
+)
 from jaxhand.viz import plot_joint_angles  # noqa: E402
 
 
@@ -74,6 +80,15 @@ EXPERIMENTS = [
     Experiment("two_camera_hand", "wssd", "bounded", 20, 100, 1),           # DigitEyes §6.2: 27 DOF, two cameras
     Experiment("mouse3d", "gaussian", "lm", 20, 150, 1),                    # DigitEyes §6.1: 3D mouse, one camera
 ]
+
+
+def track_config(solver: str, steps: int, theta: float, reextract: int, robust: int | None = None) -> TrackConfig:
+    """The tracker's settings for one run: the defaults with this run's solver, iterations, θ,
+    re-extractions and (when given) robust passes."""
+    changes = {"solver": solver, "fit": {"max_steps": steps}, "filter": {"theta": theta}, "reextract": reextract}
+    if robust is not None:
+        changes["robust"] = {"passes": robust}
+    return TrackConfig().merged(changes)
 
 
 def run(seq, images, extract, config: TrackConfig) -> dict:
@@ -123,9 +138,9 @@ def sweep(name: str, args) -> int:
     for frames in SWEEP_FRAMES:
         seq = make_preset(name, frames=frames, size=args.size)
         images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras] for q in seq.q]
-        extra = {"reextract": reextract if args.reextract is None else args.reextract}
-        r = run(seq, images, image_extractor(seq.model, seq.cameras, image_config(method, exp, args)),
-                TrackConfig(solver=solver, max_steps=steps, theta=args.theta, **extra))
+        r = run(seq, images, ImageFrontEnd(seq.model, seq.cameras, image_config(method, exp, args)),
+                track_config(solver, steps, args.theta, reextract if args.reextract is None else args.reextract,
+                             args.robust))
         rows.append({"frames": frames, "fps_of_sequence": round(1 / float(seq.times_s[1] - seq.times_s[0]), 2),
                      **{k: v for k, v in r.items() if not k.startswith("q_") and k != "per_joint_mean_deg"}})
         print(f"{name} {method}+{solver}: {frames:4d} frames  mean {r['joint_error_mean_deg']:5.2f} deg  max "
@@ -182,17 +197,16 @@ def main(argv=None) -> int:
         shown = eqx.tree_at(lambda m: m.link_radius_mm, seq.model, seq.model.link_radius_mm * args.radius_scale)
         images = [[render_frame(shown, c, q, RenderConfig(antialias=3)).image for c in seq.cameras] for q in seq.q]
         render_s = time.perf_counter() - t0
-        extra = {"reextract": reextract if args.reextract is None else args.reextract}
-        if args.robust is not None:
-            extra["robust_passes"] = args.robust
-        config = TrackConfig(solver=solver, max_steps=steps, theta=args.theta, **extra)
+        config = track_config(solver, steps, args.theta, reextract if args.reextract is None else args.reextract,
+                              args.robust)
+        config = dataclasses.replace(config, image=image_config(method, exp, args))
         entry = {"method": method, "solver": solver, "steps": steps, "theta": args.theta, "size": args.size,
-                 "robust_passes": config.robust_passes, "reextract": config.reextract, "render_s": render_s,
+                 "robust_passes": config.robust.passes, "reextract": config.reextract, "render_s": render_s,
                  "radius_scale": args.radius_scale, "width_gain": args.width_gain,
-                 "reacquire_deg": list(image_config(method, exp, args).reacquire_deg)}
+                 "reacquire_deg": list(config.image.reacquire_deg), "config": config_to_dict(config)}
         for label, extract in (
-                (method, image_extractor(seq.model, seq.cameras, image_config(method, exp, args))),
-                ("exact+0.5px", exact_extractor(seq.model, seq.cameras, seq.q, noise_px=0.5))):
+                (method, ImageFrontEnd(seq.model, seq.cameras, config.image)),
+                ("exact+0.5px", ExactFrontEnd(seq.model, seq.cameras, seq.q, noise_px=0.5))):
             r = run(seq, images, extract, config)
             entry[label] = {k: v for k, v in r.items() if not k.startswith("q_")}
             rows.append((name, label, solver, r))

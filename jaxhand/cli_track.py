@@ -10,58 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from ._errors import InputError
+from .track import TrackConfig, load_track_config
 
-__all__ = ["register", "image_extractor", "run_demo", "print_summary"]
-
-
-class image_extractor:  # noqa: N801 (used like a function: image_extractor(model, cameras, config))
-    """The tracker's front end: :func:`jaxhand.image.extract_features` carrying its template state.
-
-    Calling it, ``extract(images, q_pred, image_state) -> (features, image_state, diagnostics)``,
-    extracts the features around the prediction; the diagnostics hold the window polygons per
-    camera as coordinate arrays (for overlays; a :class:`jaxhand.image.WindowOutlines`, which
-    converts a camera's polygons only when they are read) and the front end's stage timings.
-    After a good solve the tracker calls :meth:`refresh`, which stores the profiles seen at the
-    solved pose as the templates of the links visible there (thesis §4.3.1: templates come from
-    unoccluded views).
-    """
-
-    def __init__(self, model, cameras, config=None):
-        from .image import ImageConfig
-
-        self.model, self.cameras = model, cameras
-        self.config = ImageConfig() if config is None else config
-
-    def __call__(self, images, q_pred, state):
-        from .image import WindowOutlines, extract_features, update_widths
-
-        if self.config.width_gain > 0 and (state is None or state.radius_mm is None):
-            # The first frame, at the hand-set pose: the radii measured there replace the model's
-            # at once (gain 1), one scale for the phalanges that cannot be measured there; later
-            # frames refine them with config.width_gain (refresh).
-            state = update_widths(images, self.model, self.cameras, np.asarray(q_pred), self.config, state,
-                                  gain=1.0, fill_unmeasured=True)
-        features, diag = extract_features(images, self.model, self.cameras, np.asarray(q_pred), self.config, state)
-        # The window outlines per camera, as coordinate arrays converted only when read (overlays).
-        info = {"windows": WindowOutlines(diag), "method": diag.method}
-        if getattr(diag, "timings_s", None):
-            info["timings_s"] = dict(diag.timings_s)
-        return features, diag.state, info
-
-    def refresh(self, images, q, state):
-        """The front end's state updated at the solved pose ``q``: the phalanx radii estimated
-        again when ``config.width_gain`` > 0 (:func:`jaxhand.image.update_widths`), then the
-        templates re-taken; a search that keeps no templates (all but "wssd") with no width
-        estimate gets ``state`` back untouched, at no cost."""
-        from .image import capture_templates, update_widths
-        from .image.searches import TEMPLATE_SEARCHES
-
-        q = np.asarray(q)
-        if self.config.width_gain > 0:
-            state = update_widths(images, self.model, self.cameras, q, self.config, state)
-        if self.config.method not in TEMPLATE_SEARCHES:
-            return state
-        return capture_templates(images, self.model, self.cameras, q, self.config, state)
+__all__ = ["register", "run_demo", "print_summary", "track_config_from_args"]
 
 
 def register(sub) -> None:
@@ -74,20 +25,27 @@ def register(sub) -> None:
                                                 "(default: a synth folder's first ground-truth frame, else default)")
     p.add_argument("--camera", action="append", help="camera JSON file (once per camera, or one rig file)")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--method", default="wssd", help="feature search (see jaxhand.image.SEARCH_NAMES)")
-    p.add_argument("--solver", default="bounded", help="gn | gn_eta | lm_fixed | lm | bounded")
-    p.add_argument("--steps", type=int, default=20, help="solver iterations per frame (1: thesis fast mode)")
-    p.add_argument("--theta", type=float, default=0.85,
-                   help="g-h-k discount factor per frame at --theta-rate frames/s (scaled to the input's rate)")
-    p.add_argument("--theta-rate", type=float, default=25.0,
-                   help="frame rate (Hz) at which --theta holds; 0: --theta is per frame at any rate")
+    p.add_argument("--config", metavar="TOML", help="tracking settings (a TrackConfig TOML file, see "
+                                                    "jaxhand.save_track_config); the flags below override it")
+    defaults = TrackConfig()   # --help shows the defaults of the config itself
+    p.add_argument("--method",
+                   help=f"feature search (see jaxhand.image.SEARCH_NAMES; default: {defaults.image.method})")
+    p.add_argument("--solver", help=f"gn | gn_eta | lm_fixed | lm | bounded (default: {defaults.solver})")
+    p.add_argument("--steps", type=int,
+                   help=f"solver iterations per frame (1: thesis fast mode; default: {defaults.fit.max_steps})")
+    p.add_argument("--theta", type=float, help="g-h-k discount factor per frame at --theta-rate frames/s (scaled to "
+                                               f"the input's rate; default: {defaults.filter.theta})")
+    p.add_argument("--theta-rate", type=float, help="frame rate (Hz) at which --theta holds; 0: --theta is per frame "
+                                                    f"at any rate (default: {defaults.filter.theta_rate_hz})")
     p.add_argument("--no-filter", action="store_true", help="report the raw solve, predict with it")
-    p.add_argument("--reacquire", default="", metavar="DEG,...",
+    p.add_argument("--reacquire", metavar="DEG,...",
                    help="search again for a lost phalanx with its joint turned by these angles, e.g. 15,30,45 "
-                        "(ImageConfig.reacquire_deg; default: never)")
-    p.add_argument("--width-gain", type=float, default=0.0,
+                        "(ImageConfig.reacquire_deg; default: "
+                        f"{','.join(f'{a:g}' for a in defaults.image.reacquire_deg) or 'never'})")
+    p.add_argument("--width-gain", type=float,
                    help="estimate the phalanx widths from the images with this gain per frame (thesis app. E; "
-                        "0.05-0.2 when the model's radii may be off; 0: keep the model's)")
+                        "0.05-0.2 when the model's radii may be off; 0: keep the model's; "
+                        f"default: {defaults.image.width_gain})")
     p.add_argument("--fps", type=float, default=25.0, help="frame rate of image folders")
     p.add_argument("--truth", help="ground truth: a synth ground_truth.json (default: the synth folder's)")
     p.add_argument("--max-frames", type=int, help="stop after N frames")
@@ -136,27 +94,40 @@ def _resolve(args):
     return model, cameras, sources, truth, synth
 
 
-def _track(args) -> int:
-    from .image import ImageConfig
-    from .io import parse_pose
-    from .run import track_sequence
-    from .track import TrackConfig
+def track_config_from_args(args) -> TrackConfig:
+    """The run's :class:`~jaxhand.TrackConfig`: ``--config`` (or the defaults), then every flag
+    given on the command line on top of it."""
+    config = load_track_config(args.config) if args.config else TrackConfig()
+    changes: dict = {}
+    for flag, section, key in (("solver", None, "solver"), ("steps", "fit", "max_steps"), ("theta", "filter", "theta"),
+                               ("theta_rate", "filter", "theta_rate_hz"), ("method", "image", "method"),
+                               ("width_gain", "image", "width_gain")):
+        value = getattr(args, flag)
+        if value is not None:
+            (changes.setdefault(section, {}) if section else changes)[key] = value
+    if args.no_filter:
+        changes.setdefault("filter", {})["enabled"] = False
+    if args.reacquire is not None:
+        try:
+            changes.setdefault("image", {})["reacquire_deg"] = [float(a) for a in args.reacquire.split(",")
+                                                                if a.strip()]
+        except ValueError:
+            raise InputError(f"--reacquire: expected angles in degrees separated by commas, got {args.reacquire!r}"
+                             ) from None
+    return config.merged(changes) if changes else config
 
+
+def _track(args) -> int:
+    from .io import parse_pose
+    from .track import track_sequence
+
+    config = track_config_from_args(args)   # first: a bad settings file fails before any frame is read
     model, cameras, sources, truth, synth = _resolve(args)
     if args.init is None and synth is not None:
         q0 = np.asarray(synth.q[0])
     else:
         q0 = parse_pose(model, args.init)
-    config = TrackConfig(solver=args.solver, max_steps=args.steps, theta=args.theta,
-                         theta_rate_hz=args.theta_rate or None, filter=not args.no_filter)
-    try:
-        reacquire = tuple(float(a) for a in args.reacquire.split(",") if a.strip())
-    except ValueError:
-        raise InputError(f"--reacquire: expected angles in degrees separated by commas, got {args.reacquire!r}"
-                         ) from None
-    extract = image_extractor(model, cameras, ImageConfig(method=args.method, width_gain=args.width_gain,
-                                                          reacquire_deg=reacquire))
-    summary = track_sequence(model, cameras, sources, q0, args.out, extract, config=config, truth=truth,
+    summary = track_sequence(model, cameras, sources, q0, args.out, config=config, truth=truth,
                              video=not args.no_video, max_frames=args.max_frames)
     print_summary(summary, Path(args.out))
     return 0

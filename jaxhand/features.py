@@ -12,6 +12,8 @@ rig's order.
 
 from __future__ import annotations
 
+import types
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
@@ -22,7 +24,20 @@ from .camera import Camera, as_rig
 from .kinematics import project_pose
 from .model import Model
 
-__all__ = ["Features", "empty_features", "features_from_pose", "line_through", "validate_features"]
+__all__ = ["Features", "empty_features", "features_from_pose", "features_from_points", "line_through",
+           "validate_features", "feature_value_checks", "raise_on_values", "FEATURE_CHECKS"]
+
+#: The value checks of :func:`feature_value_checks`, in its order, with the message each failure
+#: raises from :func:`validate_features` (after ``features[c]``).
+FEATURE_CHECKS = (
+    ("finite", ": a valid line or tip holds NaN or inf"),
+    ("unit_normal", ".lines: (a, b) must be unit normals where valid"),
+    ("line_weight", ".line_weight: weights must be finite and >= 0"),
+    ("tip_weight", ".tip_weight: weights must be finite and >= 0"),
+)
+#: Tolerance on the unit length of a valid line normal (``|norm - 1| <= 1e-6 + 1e-5``, the
+#: tolerance of ``np.allclose(norm, 1, atol=1e-6)``).
+_NORMAL_TOL = 1e-6 + 1e-5
 
 
 class Features(eqx.Module):
@@ -67,28 +82,70 @@ def line_through(p0: Float[Array, "*n 2"], p1: Float[Array, "*n 2"]) -> Float[Ar
     return jnp.concatenate([normal, rho], axis=-1)
 
 
+def features_from_points(start_px, end_px, tips_px, *, noise_px: float = 0.0,
+                         rng: np.random.Generator | None = None) -> Features:
+    """Exact features of one camera from the projected link axes and tips (the one rule behind
+    :func:`features_from_pose` and :func:`jaxhand.solve.features_from_poses`).
+
+    Every link line passes through its projected axis (``start_px`` -> ``end_px``, (*b, links, 2))
+    and every tip sits on its projected centre (``tips_px``, (*b, tips, 2)); with ``noise_px`` > 0
+    the two axis end points and the tip get independent Gaussian noise of that standard
+    deviation (pixels, drawn from ``rng`` in that order) before the lines are formed. A link
+    whose projection is shorter than 1e-6 px is marked invalid; every weight is 1.
+    """
+    s, e, t = (np.asarray(x) for x in (start_px, end_px, tips_px))
+    if noise_px > 0:
+        rng = rng if rng is not None else np.random.default_rng(0)
+        s = s + rng.normal(0, noise_px, s.shape)
+        e = e + rng.normal(0, noise_px, e.shape)
+        t = t + rng.normal(0, noise_px, t.shape)
+    valid = np.linalg.norm(e - s, axis=-1) > 1e-6
+    return Features(lines=line_through(jnp.asarray(s), jnp.asarray(e)), line_valid=jnp.asarray(valid),
+                    line_weight=jnp.ones(valid.shape), tips=jnp.asarray(t),
+                    tip_valid=jnp.ones(t.shape[:-1], bool), tip_weight=jnp.ones(t.shape[:-1]))
+
+
 def features_from_pose(model: Model, cameras, q, *, noise_px: float = 0.0,
                        rng: np.random.Generator | None = None) -> tuple[Features, ...]:
-    """Exact features of the model at state q in every camera (optionally with pixel noise).
-
-    Every link line passes through the projected link axis and every tip sits on the projected
-    tip centre; with ``noise_px`` > 0 the two axis end points and the tip get independent
-    Gaussian noise of that standard deviation (pixels) before the lines are formed.
-    """
-    out = []
+    """Exact features of the model at state q in every camera (optionally with pixel noise):
+    :func:`features_from_points` of each camera's projection, sharing ``rng``."""
     rng = rng if rng is not None else np.random.default_rng(0)
+    out = []
     for cam in as_rig(cameras):
         v = project_pose(model, cam, jnp.asarray(q))
-        s, e, t = (np.asarray(x) for x in (v.link_start_px, v.link_end_px, v.tips_px))
-        if noise_px > 0:
-            s = s + rng.normal(0, noise_px, s.shape)
-            e = e + rng.normal(0, noise_px, e.shape)
-            t = t + rng.normal(0, noise_px, t.shape)
-        valid = np.linalg.norm(e - s, axis=-1) > 1e-6
-        out.append(Features(lines=line_through(jnp.asarray(s), jnp.asarray(e)), line_valid=jnp.asarray(valid),
-                            line_weight=jnp.ones(model.n_links), tips=jnp.asarray(t),
-                            tip_valid=jnp.ones(model.n_tips, bool), tip_weight=jnp.ones(model.n_tips)))
+        out.append(features_from_points(v.link_start_px, v.link_end_px, v.tips_px, noise_px=noise_px, rng=rng))
     return tuple(out)
+
+
+def feature_value_checks(f, xp=jnp):
+    """The value checks of one camera's features, one flag per entry of :data:`FEATURE_CHECKS`
+    (True: passed), over any leading batch axes: valid lines and tips finite, valid line normals
+    of unit length, weights finite and >= 0.
+
+    The one home of the rule: :func:`validate_features` runs it on the host (``xp=numpy``), the
+    tracker's compiled step inside jit (``xp=jax.numpy``). Masked slots may hold anything.
+    ``f`` is a :class:`Features` or any object with its fields as ``xp`` arrays.
+    """
+    lv, tv = f.line_valid[..., None], f.tip_valid[..., None]
+    norm = xp.linalg.norm(xp.where(lv, f.lines[..., :2], 0.0), axis=-1)
+    return (xp.all(xp.isfinite(f.lines) | ~lv) & xp.all(xp.isfinite(f.tips) | ~tv),
+            xp.all((xp.abs(norm - 1.0) <= _NORMAL_TOL) | ~f.line_valid),
+            xp.all(xp.isfinite(f.line_weight) & (f.line_weight >= 0)),
+            xp.all(xp.isfinite(f.tip_weight) & (f.tip_weight >= 0)))
+
+
+def raise_on_values(features: tuple[Features, ...], xp=np) -> None:
+    """Raise the :class:`~jaxhand.InputError` of the first failed value check
+    (:func:`feature_value_checks`), naming the camera and the field."""
+    for c, f in enumerate(features):
+        if xp is np:
+            f = types.SimpleNamespace(**{name: np.asarray(getattr(f, name)) for name in _FIELDS})
+        for ok, (_, message) in zip(feature_value_checks(f, xp), FEATURE_CHECKS):
+            if not bool(ok):
+                raise InputError(f"features[{c}]{message}")
+
+
+_FIELDS = ("lines", "line_valid", "line_weight", "tips", "tip_valid", "tip_weight")
 
 
 def validate_features(model: Model, cameras: Camera | tuple[Camera, ...], features) -> tuple[Features, ...]:
@@ -109,14 +166,5 @@ def validate_features(model: Model, cameras: Camera | tuple[Camera, ...], featur
             a = np.asarray(getattr(f, name))
             if a.shape != shape:
                 raise InputError(f"features[{c}].{name}: expected shape {shape} for {model.name!r}, got {a.shape}")
-        lines, tips = np.asarray(f.lines), np.asarray(f.tips)
-        lv, tv = np.asarray(f.line_valid), np.asarray(f.tip_valid)
-        if not np.all(np.isfinite(lines[lv])) or not np.all(np.isfinite(tips[tv])):
-            raise InputError(f"features[{c}]: a valid line or tip holds NaN or inf")
-        if lv.any() and not np.allclose(np.linalg.norm(lines[lv, :2], axis=-1), 1.0, atol=1e-6):
-            raise InputError(f"features[{c}].lines: (a, b) must be unit normals where valid")
-        for name in ("line_weight", "tip_weight"):
-            w = np.asarray(getattr(f, name))
-            if not np.all(np.isfinite(w)) or np.any(w < 0):
-                raise InputError(f"features[{c}].{name}: weights must be finite and >= 0")
+    raise_on_values(feats)
     return feats

@@ -19,7 +19,7 @@ from .model import Model
 
 __all__ = ["dh_transform", "dh_transforms", "quat_to_rotation", "base_pose", "frame_poses", "Pose", "View",
            "pose", "forward", "project_pose", "check_q_shape", "views", "link_points", "validate_q", "random_q",
-           "clip_q", "normalize_q", "Pills", "occluder_pills", "all_pills"]
+           "clip_q", "normalize_q", "clip_to_limits", "normalize_quaternion", "Pills", "occluder_pills", "all_pills"]
 
 
 def dh_transform(alpha, a, d, theta):
@@ -266,17 +266,37 @@ def validate_q(model: Model, q, *, name: str = "q", within_limits: bool = False)
     return arr
 
 
+def normalize_quaternion(q, has_quaternion: bool):
+    """q with its leading (w, x, y, z) quaternion scaled to unit norm when ``has_quaternion``
+    (static); the one normalisation rule of the kinematics, the solvers and the tracker."""
+    if not has_quaternion:
+        return q
+    quat = q[..., :4]
+    n = jnp.linalg.norm(quat, axis=-1, keepdims=True)
+    # Guard: a zero quaternion cannot be normalised; it stays zero (the kinematics map it to the
+    # identity), and the safe denominator keeps both branches finite.
+    safe = jnp.where(n > 0, n, 1.0)
+    return q.at[..., :4].set(jnp.where(n > 0, quat / safe, quat))
+
+
+def clip_to_limits(q, lower, upper, has_quaternion: bool):
+    """q clipped into [lower, upper], every entry but a quaternion's (whose box is implied by
+    its unit norm): the one clip rule of the kinematics, the solvers and the tracker."""
+    if not has_quaternion:
+        return jnp.clip(q, lower, upper)
+    bounded = np.arange(q.shape[-1]) >= 4   # static: all but the quaternion's entries
+    return jnp.where(bounded, jnp.clip(q, lower, upper), q)
+
+
 def normalize_q(model: Model, q):
     """q with the free base's quaternion renormalised to unit length (identity otherwise)."""
-    if model.base_kind != "free":
-        return q
-    n = jnp.linalg.norm(q[..., :4], axis=-1, keepdims=True)
-    return jnp.concatenate([q[..., :4] / jnp.where(n > 0, n, 1.0), q[..., 4:]], axis=-1)
+    return normalize_quaternion(q, model.base_kind == "free")
 
 
 def clip_q(model: Model, q):
-    """q clipped into the joint limits (quaternion renormalised)."""
-    return normalize_q(model, jnp.clip(q, model.q_lower, model.q_upper))
+    """q clipped into the joint limits (:func:`clip_to_limits`), quaternion renormalised."""
+    free = model.base_kind == "free"
+    return normalize_quaternion(clip_to_limits(q, model.q_lower, model.q_upper, free), free)
 
 
 def random_q(model: Model, rng: np.random.Generator, n: int | None = None, *, margin: float = 0.0,

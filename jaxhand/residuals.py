@@ -43,7 +43,8 @@ from .kinematics import pose as pose_at
 from .model import Model
 
 __all__ = ["DEFAULT_LINK_FRACTIONS", "ResidualArgs", "make_residual_args", "residuals", "cost",
-           "residual_jacobian", "residuals_and_jacobian", "point_jacobian", "residual_labels", "n_residuals"]
+           "residual_jacobian", "residuals_and_jacobian", "point_jacobian", "residual_labels", "n_residuals",
+           "feature_distances"]
 
 #: Default fractions along each link axis (0 = its joint, 1 = its end) of the link residual points.
 DEFAULT_LINK_FRACTIONS = (0.25, 0.75)
@@ -107,12 +108,39 @@ def _masked(feats: Features, dtype):
     return tip_valid, tip_obs, jnp.sqrt(tip_w), lines, jnp.sqrt(line_w)
 
 
+def _unweighted(feats: Features, tips_px, pts_px):
+    """The raw residuals of one camera: tip offsets ``t(q) - t_obs`` (tips, 2) and signed
+    distances of the link points to their observed lines (links, K), px, exact zeros in masked
+    slots. The one distance rule of :func:`residuals` and :func:`feature_distances`."""
+    tip_valid, tip_obs, _, lines, _ = _masked(feats, tips_px.dtype)
+    d_tip = jnp.where(tip_valid, tips_px - tip_obs, 0.0)
+    d_link = jnp.sum(lines[:, None, :2] * pts_px, axis=-1) - lines[:, None, 2]
+    return d_tip, d_link
+
+
 def _stack_residuals(feats: Features, tips_px, pts_px) -> Float[Array, " r"]:
     """One camera's residual vector from its projected tips (tips, 2) and link points (links, K, 2)."""
-    tip_valid, tip_obs, sqrt_tip_w, lines, sqrt_line_w = _masked(feats, tips_px.dtype)
-    r_tip = jnp.where(tip_valid, tips_px - tip_obs, 0.0) * sqrt_tip_w[:, None]
-    r_link = (jnp.sum(lines[:, None, :2] * pts_px, axis=-1) - lines[:, None, 2]) * sqrt_line_w[:, None]
+    _, _, sqrt_tip_w, _, sqrt_line_w = _masked(feats, tips_px.dtype)
+    d_tip, d_link = _unweighted(feats, tips_px, pts_px)
+    r_tip = d_tip * sqrt_tip_w[:, None]
+    r_link = d_link * sqrt_line_w[:, None]
     return jnp.concatenate([r_tip.reshape(-1), r_link.reshape(-1)])
+
+
+def feature_distances(model: Model, cameras: tuple, features: tuple, q: Float[ArrayLike, " nq"],
+                      fractions: Float[Array, " K"]) -> tuple[tuple[Float[Array, " links"], Float[Array, " tips"]],
+                                                               ...]:
+    """Per camera, each link line's largest distance (px) to the model's link points and each
+    tip's distance (px) to the model's tip at state q, unweighted, 0 where a feature is invalid
+    (traceable, not jitted): what the tracker's gate and robust reweighting judge features by."""
+    pose = pose_at(model, q)
+    out = []
+    for cam, f in zip(cameras, features):
+        tips_px, _ = cam.project(pose.tips)
+        pts_px, _ = cam.project(link_points(pose, fractions))
+        d_tip, d_link = _unweighted(f, tips_px, pts_px)
+        out.append((jnp.max(jnp.abs(d_link), axis=-1), jnp.linalg.norm(d_tip, axis=-1)))
+    return tuple(out)
 
 
 def residuals(q: Float[ArrayLike, " nq"], args: ResidualArgs) -> Float[Array, " r"]:

@@ -30,8 +30,8 @@ end costs, and the oracle run is the bound set by the solver and the filter alon
 run produces; nothing is tuned or selected per frame.
 
 **What it uses.** The public API only: `jaxhand.render` (`make_preset`, `render_frame`), `jaxhand.track`
-(`Tracker`, `TrackConfig`), `jaxhand.cli_track.image_extractor` (the image front end the tracker takes),
-`jaxhand.track.exact_extractor` (the oracle), `jaxhand.run.accuracy_summary`, `jaxhand.project_pose` and
+(`Tracker`, `TrackConfig`), `jaxhand.track.ImageFrontEnd` (the image front end the tracker takes),
+`jaxhand.track.ExactFrontEnd` (the oracle), `jaxhand.track.accuracy_summary`, `jaxhand.project_pose` and
 `jaxhand.viz.draw_view`, plus NumPy, OpenCV and matplotlib. The sequences are rendered deterministically and the
 oracle's noise comes from a seeded generator. It runs in about a minute on two CPU cores.
 """)
@@ -44,11 +44,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import jaxhand as jh
-from jaxhand.cli_track import image_extractor
 
 from jaxhand.render import RenderConfig, make_preset, render_frame
-from jaxhand.run import accuracy_summary
-from jaxhand.track import TrackConfig, Tracker, exact_extractor
+from jaxhand.track import ExactFrontEnd, FilterConfig, ImageFrontEnd, TrackConfig, Tracker, accuracy_summary
 from jaxhand.viz import draw_view, joint_groups
 
 # Show figures inline (importing jaxhand.viz selects matplotlib's non-interactive Agg backend).
@@ -60,7 +58,7 @@ OVERLAY_FRAMES = [1, 10, 20, 30, 40]  # 1-based, as in thesis fig. 6.1
 
 def oracle_extractor(seq, noise_px=0.5, seed=0):
     # Exact features of the true pose of each frame, with pixel noise: no image analysis at all.
-    return exact_extractor(seq.model, seq.cameras, seq.q, noise_px=noise_px, seed=seed)
+    return ExactFrontEnd(seq.model, seq.cameras, seq.q, noise_px=noise_px, seed=seed)
 
 
 def track(seq, images, extract, config):
@@ -79,9 +77,9 @@ def experiment(name, method, solver, frames, theta=0.85, reextract=1):
               for q in seq.q]
     print(f"{name}: {seq.model.name}, {seq.model.dof} DOF, {frames} frames at {1 / (seq.times_s[1] - seq.times_s[0]):.0f} "
           f"fps, {seq.size[0]}x{seq.size[1]} px, rendered in {time.perf_counter() - t0:.1f} s")
-    config = TrackConfig(solver=solver, theta=theta, reextract=reextract)
+    config = TrackConfig(solver=solver, filter=FilterConfig(theta=theta), reextract=reextract)
     runs = {}
-    for label, extract in ((f"image ({method})", image_extractor(seq.model, seq.cameras, jh.ImageConfig(method=method))),
+    for label, extract in ((f"image ({method})", ImageFrontEnd(seq.model, seq.cameras, jh.ImageConfig(method=method))),
                            ("exact features + 0.5 px", oracle_extractor(seq))):
         t0 = time.perf_counter()
         reports = track(seq, images, extract, config)
@@ -129,7 +127,7 @@ def plot_overlays(seq, images, reports, title):
         rep, cam = reports[f - 1], seq.cameras[0]
         img = images[f - 1][0]
         bgr = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if img.ndim == 2 else img.copy()
-        for poly in rep.diagnostics["windows"][0]:
+        for poly in rep.diagnostics.windows[0]:
             pts = np.asarray(poly, float).reshape(-1, 2)
             cv2.polylines(bgr, [np.round(pts * 16).astype(np.int32)], True, GREEN, 1, cv2.LINE_AA, 4)
         draw_view(bgr, jh.project_pose(seq.model, cam, rep.q_solved), BLUE, joints=False)

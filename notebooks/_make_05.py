@@ -28,14 +28,14 @@ buttons, slides the palm around the table and then does everything at once. The 
 
 The image front end is `"gaussian"` and the solver `"lm"` with the g-h-k filter at θ = 0.85 per frame at
 25 frames/s, as in `benchmarks/tracking.py`; the tracker scales it to this sequence's 10 frames/s (θ = 0.85^2.5 =
-0.666 per frame, `TrackConfig.theta_rate_hz`), so that the filter forgets as much per second as it does on the
+0.666 per frame, `FilterConfig.theta_rate_hz`), so that the filter forgets as much per second as it does on the
 thesis's sequences. As in notebook 04, the run is repeated with an *oracle* front end that hands the solver
 the exact features of the true pose plus 0.5 px of seeded Gaussian noise, the bound set by the solver and filter
 alone. The numbers are whatever this run produces; nothing is tuned or selected per frame.
 
 **What it uses.** The public API only: `jaxhand.render` (`make_preset`, `render_frame`), `jaxhand.track`
-(`Tracker`, `TrackConfig`), `jaxhand.cli_track.image_extractor`, `jaxhand.track.exact_extractor` (oracle),
-`jaxhand.run.accuracy_summary`, `jaxhand.mouse.mouse_state`, `jaxhand.project_pose` and `jaxhand.viz.draw_view`,
+(`Tracker`, `TrackConfig`), `jaxhand.track.ImageFrontEnd`, `jaxhand.track.ExactFrontEnd` (oracle),
+`jaxhand.track.accuracy_summary`, `jaxhand.mouse.mouse_state`, `jaxhand.project_pose` and `jaxhand.viz.draw_view`,
 plus NumPy, OpenCV and matplotlib. It runs in about half a minute on two CPU cores.
 """)
 
@@ -47,12 +47,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import jaxhand as jh
-from jaxhand.cli_track import image_extractor
 
 from jaxhand.mouse import mouse_state
 from jaxhand.render import RenderConfig, make_preset, render_frame
-from jaxhand.run import accuracy_summary
-from jaxhand.track import TrackConfig, Tracker, exact_extractor
+from jaxhand.track import ExactFrontEnd, FilterConfig, ImageFrontEnd, TrackConfig, Tracker, accuracy_summary
 from jaxhand.viz import draw_view
 
 # Show figures inline (importing jaxhand.viz selects matplotlib's non-interactive Agg backend).
@@ -71,7 +69,7 @@ print(f"mouse3d: {m.dof} DOF ({', '.join(m.q_names)}), {seq.n_frames} frames at 
 
 def oracle_extractor(seq, noise_px=0.5, seed=0):
     # Exact features of the true pose of each frame, with pixel noise: no image analysis at all.
-    return exact_extractor(seq.model, seq.cameras, seq.q, noise_px=noise_px, seed=seed)
+    return ExactFrontEnd(seq.model, seq.cameras, seq.q, noise_px=noise_px, seed=seed)
 
 
 def track(extract, config):
@@ -89,10 +87,10 @@ def pole(qs):
                 thumb=np.array([s.thumb_button for s in states]), ring=np.array([s.ring_button for s in states]))
 
 
-config = TrackConfig(solver="lm", theta=0.85)
+config = TrackConfig(solver="lm", filter=FilterConfig(theta=0.85))
 truth = pole(seq.q)
 runs = {}
-for label, extract in (("image (gaussian)", image_extractor(m, seq.cameras, jh.ImageConfig(method="gaussian"))),
+for label, extract in (("image (gaussian)", ImageFrontEnd(m, seq.cameras, jh.ImageConfig(method="gaussian"))),
                        ("exact features + 0.5 px", oracle_extractor(seq))):
     t0 = time.perf_counter()
     reports = track(extract, config)
@@ -116,7 +114,7 @@ md(r"""
 Read the lost-frame count of the image run first: a frame counts as lost when the residual after the solve stays
 above 6 px or too few features are found. The tracker has no re-initialisation, so if the image front end lost
 the hand, the solver would keep fitting whatever features it found near the prediction and the estimate would
-not come back. Holding θ = 0.85 per frame at 10 frames/s instead (`TrackConfig(theta_rate_hz=None)`) keeps 2.5
+not come back. Holding θ = 0.85 per frame at 10 frames/s instead (`TrackConfig(filter=FilterConfig(theta_rate_hz=None))`) keeps 2.5
 times as much history per second: the prediction then lags the sliding palm and the image run loses the hand
 (`benchmarks/tracking.py` measured 9.1° mean and a loss from frame 100 that way, against 1.5° and no loss). The
 same motion played faster, over 100 frames, is also harder: the image run then loses 15
@@ -136,7 +134,7 @@ reports = runs["image (gaussian)"]["reports"]
 for ax, f in zip(axes, shown):
     rep, img = reports[f - 1], images[f - 1][0]
     bgr = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if img.ndim == 2 else img.copy()
-    for poly in rep.diagnostics["windows"][0]:
+    for poly in rep.diagnostics.windows[0]:
         pts = np.asarray(poly, float).reshape(-1, 2)
         cv2.polylines(bgr, [np.round(pts * 16).astype(np.int32)], True, GREEN, 1, cv2.LINE_AA, 4)
     draw_view(bgr, jh.project_pose(m, cam, rep.q_solved), BLUE, joints=False)

@@ -31,16 +31,16 @@ one view still constrains the state. The figures follow the paper:
 The image front end is the thesis's proposed windowed SSD template search (`ImageConfig(method="wssd")`) with the
 `"bounded"` solver (20 iterations per frame, one re-extraction around the solved pose) and the g-h-k filter at
 θ = 0.85 per frame at 25 frames/s, which the tracker scales to this sequence's 10 frames/s (θ = 0.85^2.5 = 0.666
-per frame, `TrackConfig.theta_rate_hz`), exactly as `benchmarks/tracking.py` runs this experiment. DigitEyes
+per frame, `FilterConfig.theta_rate_hz`), exactly as `benchmarks/tracking.py` runs this experiment. DigitEyes
 tracked real images with an edge search; WSSD is used here because it is the method this project reproduces from
-the thesis. The run is repeated with an *oracle* front end (`exact_extractor(model, cameras, seq.q, noise_px=0.5)`)
+the thesis. The run is repeated with an *oracle* front end (`ExactFrontEnd(model, cameras, seq.q, noise_px=0.5)`)
 that hands the solver the exact features of the true pose plus 0.5 px of seeded Gaussian noise: what the solver
 and the filter do with features that good (on these noise-free renderings the image front end can do better). The numbers are whatever this run produces; nothing is tuned or selected per
 frame.
 
 **What it uses.** The public API only: `jaxhand.render` (`make_preset`, `render_frame`, `RenderConfig`,
-`fit_perspective`), `jaxhand.track` (`Tracker`, `TrackConfig`, `exact_extractor`), `jaxhand.cli_track.image_extractor`,
-`jaxhand.ImageConfig`, `jaxhand.run.accuracy_summary`, `jaxhand.forward`, `jaxhand.project_pose` and
+`fit_perspective`), `jaxhand.track` (`Tracker`, `TrackConfig`, `ExactFrontEnd`), `jaxhand.track.ImageFrontEnd`,
+`jaxhand.ImageConfig`, `jaxhand.track.accuracy_summary`, `jaxhand.forward`, `jaxhand.project_pose` and
 `jaxhand.viz.draw_view`, plus NumPy, OpenCV and matplotlib. It runs in well under a minute on two CPU cores.
 """)
 
@@ -52,10 +52,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import jaxhand as jh
-from jaxhand.cli_track import image_extractor
 from jaxhand.render import RenderConfig, fit_perspective, make_preset, render_frame
-from jaxhand.run import accuracy_summary
-from jaxhand.track import TrackConfig, Tracker, exact_extractor
+from jaxhand.track import ExactFrontEnd, FilterConfig, ImageFrontEnd, TrackConfig, Tracker, accuracy_summary
 from jaxhand.viz import draw_view
 
 # Show figures inline (importing jaxhand.viz selects matplotlib's non-interactive Agg backend).
@@ -120,11 +118,11 @@ def track(extract, config):
     return reports
 
 
-config = TrackConfig(solver="bounded", max_steps=20, theta=0.85, reextract=1)  # theta per frame at 25 fps
-print(f"g-h-k discount per frame at {1 / dt_s:.0f} fps: {config.theta ** (config.theta_rate_hz * dt_s):.3f}")
+config = TrackConfig(solver="bounded", filter=FilterConfig(theta=0.85), reextract=1)  # theta per frame at 25 fps
+print(f"g-h-k discount per frame at {1 / dt_s:.0f} fps: {config.filter.theta_per_frame(dt_s):.3f}")
 runs = {}
-for label, extract in (("image (wssd)", image_extractor(m, seq.cameras, jh.ImageConfig(method="wssd"))),
-                       ("exact features + 0.5 px", exact_extractor(m, seq.cameras, seq.q, noise_px=0.5))):
+for label, extract in (("image (wssd)", ImageFrontEnd(m, seq.cameras, jh.ImageConfig(method="wssd"))),
+                       ("exact features + 0.5 px", ExactFrontEnd(m, seq.cameras, seq.q, noise_px=0.5))):
     t0 = time.perf_counter()
     reports = track(extract, config)
     wall = time.perf_counter() - t0
@@ -180,7 +178,7 @@ for row, f in zip(axes, SHOWN):
     for c, (ax, cam) in enumerate(zip(row, seq.cameras)):
         img = images[f - 1][c]
         bgr = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if img.ndim == 2 else img.copy()
-        for poly in rep.diagnostics["windows"][c]:
+        for poly in rep.diagnostics.windows[c]:
             pts = np.asarray(poly, float).reshape(-1, 2)
             cv2.polylines(bgr, [np.round(pts * 16).astype(np.int32)], True, GREEN, 1, cv2.LINE_AA, 4)
         draw_view(bgr, jh.project_pose(m, cam, rep.q_solved), BLUE, joints=False)

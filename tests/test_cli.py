@@ -43,13 +43,22 @@ def test_sketch_writes_pngs(tmp_path, capsys):
 
 
 def test_track_a_synth_folder_end_to_end(tmp_path, capsys):
+    from jaxhand.track import FilterConfig, RobustConfig, TrackConfig, config_to_dict, save_track_config
+
     assert main(["synth", "two_finger_occlusion", str(tmp_path / "seq"), "--frames", "6", "--size", "160x120"]) == 0
+    # settings from a file, two of them overridden by flags
+    save_track_config(TrackConfig(robust=RobustConfig(passes=1), filter=FilterConfig(theta_rate_hz=5.0)),
+                      tmp_path / "run.toml")
     assert main(["track", str(tmp_path / "seq"), "--out", str(tmp_path / "out"), "--method", "gaussian",
-                 "--theta-rate", "10", "--width-gain", "0.1"]) == 0
+                 "--theta-rate", "10", "--width-gain", "0.1", "--config", str(tmp_path / "run.toml")]) == 0
     out = capsys.readouterr().out
     assert "tracked 6 frames of two_fingers" in out
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["frames"] == 6 and "accuracy_filtered" in summary
+    # the report holds the whole tree the run used: the file's, the flags' and the defaults
+    want = TrackConfig(robust=RobustConfig(passes=1), filter=FilterConfig(theta_rate_hz=10.0),
+                       image=jh.ImageConfig(method="gaussian", width_gain=0.1))
+    assert summary["config"] == config_to_dict(want) and summary["front_end"] == "ImageFrontEnd"
     # 0.85 per frame at 10 frames/s, the synth folder's 25 frames/s: 0.85 ** 0.4
     assert summary["theta_per_frame"] == pytest.approx(0.937060, abs=1e-6)
     # the phalanx widths estimated from the frames: the rendered ones are the model's (phalanges
@@ -62,18 +71,29 @@ def test_track_a_synth_folder_end_to_end(tmp_path, capsys):
     assert np.isfinite(np.array([r.split(",")[2:-2] for r in rows[1:]], float)).all()
 
 
-def test_image_extractor_refreshes_templates_only_for_template_searches():
-    from jaxhand.cli_track import image_extractor
-    from jaxhand.render import RenderConfig, make_preset, render_frame
+def test_track_flags_override_the_config_file_and_help_shows_the_defaults(tmp_path, capsys):
+    from jaxhand.cli import build_parser
+    from jaxhand.cli_track import track_config_from_args
+    from jaxhand.track import FilterConfig, TrackConfig, save_track_config
 
-    seq = make_preset("two_finger_occlusion", frames=4, size=(160, 120))
-    images = [render_frame(seq.model, seq.cameras[0], seq.q[1], RenderConfig()).image]
-    for method in ("gaussian", "wssd"):
-        extract = image_extractor(seq.model, seq.cameras, jh.ImageConfig(method=method))
-        _, state, _ = extract(images, seq.q[0], None)
-        refreshed = extract.refresh(images, seq.q[1], state)
-        if method == "gaussian":
-            assert refreshed is state  # nothing to store: no capture at all
-        else:
-            assert refreshed is not state and refreshed.template_valid[0].all()
-            assert not np.array_equal(refreshed.templates[0], state.templates[0])
+    parse = build_parser().parse_args
+    assert track_config_from_args(parse(["track", "x", "--out", "o"])) == TrackConfig()
+    save_track_config(TrackConfig(solver="lm", filter=FilterConfig(theta=0.5, enabled=False)), tmp_path / "a.toml")
+    args = parse(["track", "x", "--out", "o", "--config", str(tmp_path / "a.toml"), "--steps", "5",
+                  "--reacquire", "15,30"])
+    config = track_config_from_args(args)
+    assert (config.solver, config.filter.theta, config.filter.enabled) == ("lm", 0.5, False)   # the file's
+    assert config.fit.max_steps == 5 and config.image.reacquire_deg == (15.0, 30.0)             # the flags'
+    (tmp_path / "bad.toml").write_text("format_version = 1\n[filter]\ntheta_rat_hz = 10\n")
+    assert main(["track", "x", "--out", "o", "--config", str(tmp_path / "bad.toml"), "--model", "index",
+                 "--camera", "c.json"]) == 2
+    assert "filter.theta_rat_hz: unknown key; did you mean 'theta_rate_hz'?" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["track", "--help"])
+    text = " ".join(capsys.readouterr().out.split()).split("options:", 1)[1]
+    d = TrackConfig()
+    for flag, value in (("--steps STEPS", d.fit.max_steps), ("--theta THETA", d.filter.theta),
+                        ("--solver SOLVER", d.solver), ("--theta-rate THETA_RATE", d.filter.theta_rate_hz),
+                        ("--method METHOD", d.image.method)):
+        # the first default after the flag is its own
+        assert text.split(flag, 1)[1].split("default: ", 1)[1].startswith(f"{value})"), flag

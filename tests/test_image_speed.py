@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 import shapely
 
-from jaxhand.cli_track import image_extractor
 from jaxhand.image import ImageConfig, WindowOutlines, extract_features
 from jaxhand.image.internal import (
     CameraContext,
@@ -22,6 +21,7 @@ from jaxhand.image.internal import (
 )
 from jaxhand.image.internal import wssd_descend as _descend
 from jaxhand.render import RenderConfig, make_preset, render_frame
+from jaxhand.track import ImageFrontEnd
 
 
 def _off_other_links_union(obs, points, links=None):
@@ -183,8 +183,6 @@ def test_window_outlines_are_the_eager_coordinates(hand27):
     with pytest.raises(IndexError):
         lazy[2]
     # what the tracker's front end hands to the overlay video
-    extract = image_extractor(seq.model, seq.cameras, config)
-    _, _, info = extract(images, q, None)
-    windows = info.get("windows")
+    windows = ImageFrontEnd(seq.model, seq.cameras, config).extract(images, q, None, 0).diagnostics.windows
     assert len(windows) == 2 and all(np.asarray(p).shape[-1] == 2 for p in windows[0])
     np.testing.assert_array_equal(np.concatenate(windows[1]), np.concatenate(eager[1]))

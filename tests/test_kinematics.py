@@ -148,3 +148,27 @@ def test_public_kinematics_check_q_shape_and_finiteness(entry):
     traced = jax.jit(call)(model.q_default)
     first = (np.asarray(jax.tree_util.tree_leaves(v)[0]) for v in (eager, traced))
     assert np.array_equal(*first)
+
+
+def test_one_clip_and_normalise_rule_for_kinematics_and_solvers():
+    from jaxhand.kinematics import clip_q, clip_to_limits, normalize_q
+    from jaxhand.solve import StateSpace
+
+    m = jh.builtin_model("hand27")
+    space = StateSpace.of(m)
+    rng = np.random.default_rng(0)
+    q = jh.random_q(m, rng)
+    q[:4] *= 3.0                       # not normalised
+    q[7:] += rng.normal(0, 1.0, m.n_q - 7)   # outside the limits
+    clipped = np.asarray(clip_to_limits(jnp.asarray(q), m.q_lower, m.q_upper, True))
+    np.testing.assert_array_equal(clipped[:4], q[:4])                    # the quaternion is left to its norm
+    np.testing.assert_array_equal(clipped[4:], np.clip(q[4:], np.asarray(m.q_lower)[4:], np.asarray(m.q_upper)[4:]))
+    np.testing.assert_array_equal(np.asarray(space.clip(jnp.asarray(q))), clipped)
+    unit = np.asarray(normalize_q(m, jnp.asarray(q)))
+    np.testing.assert_array_equal(np.asarray(space.normalize(jnp.asarray(q))), unit)
+    assert np.linalg.norm(unit[:4]) == pytest.approx(1.0, abs=1e-15)
+    both = np.asarray(clip_q(m, jnp.asarray(q)))
+    np.testing.assert_array_equal(both, np.r_[unit[:4], clipped[4:]])
+    # a zero quaternion stays zero (finite), batches work
+    z = np.asarray(normalize_q(m, jnp.zeros((2, m.n_q))))
+    assert np.all(z == 0.0)

@@ -135,3 +135,27 @@ def test_residual_args_reject_bad_fractions_and_features():
         make_residual_args(m, cam, feats, (0.5, 1.5))
     with pytest.raises(jh.InputError, match="one Features per camera"):
         make_residual_args(m, (cam, cam), feats)
+
+
+def test_feature_distances_are_the_unweighted_residuals():
+    # One rule for the residuals and the tracker's distances: with unit weights the tip distance
+    # is the norm of the tip's residual pair and the link distance the largest |residual| of its
+    # points; masked slots give 0 in both.
+    import equinox as eqx
+
+    from jaxhand.features import features_from_pose
+    from jaxhand.residuals import feature_distances
+
+    m = jh.builtin_model("index_thumb")
+    cam = jh.Orthographic(R=np.eye(3), t=np.array([0.0, 0.0, 500.0]), scale=1.0, center=(160, 120), size=(320, 240))
+    rng = np.random.default_rng(3)
+    f = features_from_pose(m, cam, jh.random_q(m, rng), noise_px=2.0, rng=rng)[0]
+    f = eqx.tree_at(lambda g: (g.line_valid, g.lines), f, (f.line_valid.at[0].set(False), f.lines.at[0].set(jnp.nan)))
+    q = jnp.asarray(jh.random_q(m, rng))
+    fractions = jnp.asarray((0.1, 0.5, 0.9))
+    (e_link, e_tip), = feature_distances(m, (cam,), (f,), q, fractions)
+    r = np.asarray(residuals(q, make_residual_args(m, cam, f, fractions)))
+    nt = 2 * m.n_tips
+    np.testing.assert_allclose(np.asarray(e_tip), np.linalg.norm(r[:nt].reshape(-1, 2), axis=-1), rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(e_link), np.abs(r[nt:].reshape(m.n_links, 3)).max(-1), rtol=1e-12)
+    assert float(e_link[0]) == 0.0 and float(e_link[1:].min()) > 0

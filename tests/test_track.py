@@ -3,32 +3,13 @@
 import cv2
 import numpy as np
 import pytest
-from helpers import CompileCounter
+from helpers import CompileCounter, FunctionFrontEnd, fixed_front_end, oracle
 
 import jaxhand as jh
-from jaxhand.features import empty_features, features_from_pose
+from jaxhand.features import features_from_pose
 from jaxhand.io import FrameSource, read_angles_csv
 from jaxhand.render import make_preset
-from jaxhand.run import accuracy_summary, track_sequence
-from jaxhand.track import TrackConfig, Tracker
-
-
-def oracle(model, cameras, truth, noise_px=0.3, seed=0, drop_frame=None):
-    """An extractor that returns the ground truth's features (frame k of ``truth`` at call k)."""
-    rng = np.random.default_rng(seed)
-    calls = {"k": 0}
-
-    def extract(images, q_pred, state):
-        k = calls["k"]
-        calls["k"] += 1
-        if k == drop_frame:  # every feature missing, NaN in the empty slots
-            f = empty_features(model)
-            f = type(f)(f.lines * np.nan, f.line_valid, f.line_weight, f.tips * np.nan, f.tip_valid, f.tip_weight)
-            return tuple(f for _ in cameras), state, {}
-        return features_from_pose(model, cameras, truth[k], noise_px=noise_px, rng=rng), state, {}
-
-    extract.reextract = False  # one call per frame (the tracker asks it once)
-    return extract
+from jaxhand.track import FilterConfig, RobustConfig, TrackConfig, Tracker, accuracy_summary, track_sequence
 
 
 @pytest.fixture(scope="module")
@@ -37,8 +18,8 @@ def seq():
 
 
 def test_oracle_tracking_is_accurate_and_compiles_once(seq):
-    tracker = Tracker(seq.model, seq.cameras, oracle(seq.model, seq.cameras, seq.q), TrackConfig(theta=0.5),
-                      dt_s=float(seq.times_s[1] - seq.times_s[0]))
+    tracker = Tracker(seq.model, seq.cameras, oracle(seq.model, seq.cameras, seq.q),
+                      TrackConfig(filter=FilterConfig(theta=0.5)), dt_s=float(seq.times_s[1] - seq.times_s[0]))
     state = tracker.init(seq.q[0])
     images = [np.zeros((120, 160), np.uint8)]
     state, first = tracker.step(state, images, 0, 0.0)
@@ -76,7 +57,7 @@ def test_corrupt_frame_is_reported_and_skipped(tmp_path, seq, capsys):
         cv2.imwrite(str(d / f"f{k:03d}.png"), np.zeros((120, 160), np.uint8))
     (d / "f002.png").write_bytes(b"broken")
     summary = track_sequence(seq.model, seq.cameras, [FrameSource(d, fps=25)], seq.q[0], tmp_path / "out",
-                             oracle(seq.model, seq.cameras, np.delete(seq.q, 2, axis=0)), video=True)
+                             oracle(seq.model, seq.cameras, seq.q), video=True)
     assert "skipping frame 2: f002.png: cannot read image" in capsys.readouterr().err
     assert summary["frames_skipped"] == [{"frame": 2, "reason": "f002.png: cannot read image (missing or corrupt)"}]
     assert list(read_angles_csv(tmp_path / "out" / "angles.csv")["frame"]) == [0, 1, 3, 4, 5]
@@ -89,18 +70,15 @@ def test_interrupted_run_keeps_finished_frames(tmp_path, seq):
     for k in range(10):
         cv2.imwrite(str(d / f"f{k:03d}.png"), np.zeros((120, 160), np.uint8))
     inner = oracle(seq.model, seq.cameras, seq.q)
-    calls = {"n": 0}
 
-    def extract(images, q_pred, state):
-        calls["n"] += 1
-        if calls["n"] == 7:
+    def extract(images, q_pred, state, frame):
+        if frame == 6:
             raise KeyboardInterrupt
-        return inner(images, q_pred, state)
+        return inner.fn(images, q_pred, state, frame)
 
-    extract.reextract = False
     with pytest.raises(KeyboardInterrupt):
-        track_sequence(seq.model, seq.cameras, [FrameSource(d, fps=25)], seq.q[0], tmp_path / "out", extract,
-                       video=False)
+        track_sequence(seq.model, seq.cameras, [FrameSource(d, fps=25)], seq.q[0], tmp_path / "out",
+                       FunctionFrontEnd(extract, reextracts=False), video=False)
     cols = read_angles_csv(tmp_path / "out" / "angles.csv")
     assert list(cols["frame"]) == [0, 1, 2, 3, 4, 5]
     np.testing.assert_allclose(cols["middle_mcp_deg"][0], np.degrees(seq.q[0][0]), atol=2.0)
@@ -113,9 +91,11 @@ def test_tracker_input_errors(seq):
     with pytest.raises(jh.InputError, match=r"one image per camera \(1\), got 2"):
         tracker.step(tracker.init(seq.q[0]), [np.zeros((4, 4), np.uint8)] * 2)
     with pytest.raises(jh.InputError, match="theta must lie in"):
-        TrackConfig(theta=1.5)
+        FilterConfig(theta=1.5)
     with pytest.raises(jh.InputError, match="theta_rate_hz must be > 0"):
-        TrackConfig(theta_rate_hz=0.0)
+        FilterConfig(theta_rate_hz=-1.0)
+    with pytest.raises(jh.InputError, match="frontend: expected an AbstractFrontEnd"):
+        Tracker(seq.model, seq.cameras, lambda images, q, s: None)
 
 
 def test_theta_holds_at_its_frame_rate_and_scales_to_others(seq):
@@ -123,9 +103,10 @@ def test_theta_holds_at_its_frame_rate_and_scales_to_others(seq):
     # 0.85 per frame at 25 frames/s forgets as much per second as 0.85 ** 2.5 = 0.6663 at 10 frames/s
     assert Tracker(seq.model, seq.cameras, extract, dt_s=0.04).theta == pytest.approx(0.85, abs=1e-12)
     assert Tracker(seq.model, seq.cameras, extract, dt_s=0.1).theta == pytest.approx(0.666112, abs=1e-6)
-    assert Tracker(seq.model, seq.cameras, extract, TrackConfig(theta=0.5, theta_rate_hz=10.0),
+    assert Tracker(seq.model, seq.cameras, extract, TrackConfig(filter=FilterConfig(theta=0.5, theta_rate_hz=10.0)),
                    dt_s=0.05).theta == pytest.approx(0.7071068, abs=1e-7)
-    assert Tracker(seq.model, seq.cameras, extract, TrackConfig(theta_rate_hz=None), dt_s=0.1).theta == 0.85
+    assert Tracker(seq.model, seq.cameras, extract, TrackConfig(filter=FilterConfig(theta_rate_hz=None)),
+                   dt_s=0.1).theta == 0.85
 
 
 def test_gate_keeps_a_misplaced_feature_from_pulling_the_first_solve(seq):
@@ -138,8 +119,9 @@ def test_gate_keeps_a_misplaced_feature_from_pulling_the_first_solve(seq):
                   f.tip_valid, f.tip_weight)
     worst = {}
     for gate in (0.0, 2.0):
-        tracker = Tracker(m, seq.cameras, lambda images, q_pred, s: ((bad,), s, {}),
-                          TrackConfig(gate_scale_px=gate, reextract=0, filter=False))
+        tracker = Tracker(m, seq.cameras, fixed_front_end(bad),
+                          TrackConfig(robust=RobustConfig(gate_scale_px=gate), reextract=0,
+                                      filter=FilterConfig(enabled=False)))
         state = tracker.init(np.clip(q + np.radians(2.0), m.q_lower, m.q_upper))
         _, rep = tracker.step(state, [None], 0, 0.0)
         worst[gate] = np.degrees(np.abs(rep.q_solved - q)).max()
@@ -150,11 +132,11 @@ def test_reextract_searches_again_around_the_solved_pose(seq):
     m = seq.model
     asked = []
 
-    def extract(images, q_pred, state):
+    def extract(images, q_pred, state, frame):
         asked.append(np.asarray(q_pred, float).copy())
-        return features_from_pose(m, seq.cameras, seq.q[10]), state, {}
+        return features_from_pose(m, seq.cameras, seq.q[10])
 
-    tracker = Tracker(m, seq.cameras, extract, TrackConfig(reextract=2))
+    tracker = Tracker(m, seq.cameras, FunctionFrontEnd(extract), TrackConfig(reextract=2))
     state = tracker.init(seq.q[9])
     state, rep = tracker.step(state, [None], 0, 0.0)
     assert len(asked) == 3  # the prediction, then twice around the solve

@@ -13,11 +13,9 @@ import numpy as np
 import pytest
 
 import jaxhand as jh
-from jaxhand.cli_track import image_extractor
 from jaxhand.image import ImageConfig, ImageState, measure_widths, update_widths
 from jaxhand.render import RenderConfig, make_preset, render_frame
-from jaxhand.run import accuracy_summary
-from jaxhand.track import TrackConfig, Tracker
+from jaxhand.track import ImageFrontEnd, TrackConfig, Tracker, accuracy_summary
 
 
 def _scaled(model, scale):
@@ -99,14 +97,14 @@ def test_tracking_a_thinner_hand_recovers_its_widths_and_the_pose(hand):
     images = [_images(thin, hand.cameras, q) for q in hand.q[:n]]
     errors, radii = {}, None
     for gain in (0.0, 0.05):
-        extract = image_extractor(m, hand.cameras, ImageConfig(method="imwplls", width_gain=gain))
+        extract = ImageFrontEnd(m, hand.cameras, ImageConfig(method="imwplls", width_gain=gain))
         tracker = Tracker(m, hand.cameras, extract, TrackConfig(reextract=0), dt_s=float(hand.times_s[1]))
         state, qs = tracker.init(hand.q[0]), []
         for k in range(n):
             state, rep = tracker.step(state, images[k], k)
             qs.append(rep.q_filtered)
         errors[gain] = accuracy_summary(m, hand.cameras, np.stack(qs), hand.q[:n])["joint_error_deg"]["mean"]
-        radii = None if state.image_state is None else state.image_state.radius_mm
+        radii = None if state.frontend_state is None else state.frontend_state.radius_mm
     np.testing.assert_allclose(radii / np.asarray(m.link_radius_mm), 0.8, rtol=0.04)
     # measured: 2.1 deg against 25.3 deg
     assert errors[0.05] < 3.0 and errors[0.0] > 4 * errors[0.05], errors

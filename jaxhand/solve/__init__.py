@@ -12,7 +12,8 @@ stopping rules:
 
 ``gn``, ``gn_eta`` and ``lm_fixed`` are one damped, step-limited Gauss-Newton update with
 different numbers (:mod:`._damped`), so per model they compile once between them. Results carry
-a :class:`Status`; no NaN leaves a solve.
+a :class:`Status`; no NaN leaves a solve. :mod:`jaxhand.solve.internal` is the documented
+internal face for traced use inside other compiled programs (the tracker's).
 """
 
 from ._config import FitConfig

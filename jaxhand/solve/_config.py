@@ -30,9 +30,8 @@ class FitConfig(eqx.Module):
         jacobian: static. How the residual Jacobian is computed: ``"autodiff"`` (``jax.jacfwd``
             of the residuals) or ``"geometric"`` (the joint-axis Jacobian of DigitEyes eqs. 8-10
             chained with the camera's, :func:`jaxhand.residuals.residuals_and_jacobian`). They
-            agree to rounding; the geometric one is several times cheaper on CPU (measured per
-            evaluation of r and J inside a compiled loop: 25 vs 135 us for hand27 on two
-            cameras, 15 vs 100 us for hand21, 6.5 vs 16.5 us for two_fingers).
+            agree to rounding; the geometric one is several times cheaper on CPU
+            (benchmarks/README.md).
         link_fractions: traced (its length is static). Fractions along each link axis of the
             link residual points (see :mod:`jaxhand.residuals`).
         xtol: traced, q units (rad, mm). Step rule: stop when the last update or the next

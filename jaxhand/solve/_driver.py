@@ -15,6 +15,7 @@ thesis's k; a trust-region method may reject a trial, which then leaves q unchan
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
@@ -50,8 +51,7 @@ def jacobian_once(fn: Callable, jac: Callable | None = None) -> Callable:
     iteration (to build J for the linear solve, for the trust region's predicted reduction).
     With this rule the linearisation computes J in the primal pass and every later application
     is the product ``J @ dy``: the kinematics and their derivative are traced once per iteration
-    instead of once per use (measured on hand21: the compile time of ``lm`` fell from 5.0 to
-    3.0 s and of ``bounded`` from 5.4 to 3.8 s of CPU time).
+    instead of once per use, which cuts the compile time (benchmarks/README.md).
 
     Args:
         fn: the residuals ``fn(y, args) -> r``.
@@ -77,6 +77,26 @@ def jacobian_once(fn: Callable, jac: Callable | None = None) -> Callable:
         return r, J @ dy
 
     return f
+
+
+class _StepView(NamedTuple):
+    """What the loop reads from an optimistix Gauss-Newton-family state after a step."""
+
+    residual: Array        # r at the point of the last evaluation
+    accepted_steps: Array  # steps accepted so far (a new one means the trial point was taken)
+    y_eval: Array          # the next trial point the solver proposes
+    result: Array          # optimistix's RESULTS code of the step
+    jacobian: Array        # J at the last accepted point (the descent's)
+
+
+def _read_state(state) -> _StepView:
+    """The one place that reads optimistix's private solver state (``_GaussNewtonState`` and
+    its descent's state): optimistix has no public accessor for the residual, the accepted-step
+    count, the proposed point or the descent's Jacobian, which the thesis's stopping rules and
+    the rank test need. Its field names are not a stable API, hence the pin to optimistix 0.1.x
+    in ``pyproject.toml``; a new optimistix release is checked here first."""
+    return _StepView(residual=state.f_info.residual, accepted_steps=state.num_accepted_steps,
+                     y_eval=state.y_eval, result=state.result, jacobian=state.descent_state.J)
 
 
 def _half_sumsq(r):
@@ -124,12 +144,13 @@ def solve_least_squares(fn: Callable, solver: GaussNewtonFamily, q0: Float[Array
         y, dynamic, k, _, H, H0, hist_q, hist_H = carry
         state = eqx.combine(dynamic, static)
         y_new, new_state, _ = solver.step(f, y, args, options, state, tags)
-        H_new = _half_sumsq(new_state.f_info.residual)
+        old, new = _read_state(state), _read_state(new_state)
+        H_new = _half_sumsq(new.residual)
         H0 = jnp.where(k == 0, H_new, H0)
         H = jnp.where(k == 0, H_new, H)
-        accepted = (new_state.num_accepted_steps > state.num_accepted_steps) & (k > 0)
-        proposal = new_state.y_eval - y_new
-        finite = is_finite(H_new, y_new, proposal) & (new_state.result == optx.RESULTS.successful)
+        accepted = (new.accepted_steps > old.accepted_steps) & (k > 0)
+        proposal = new.y_eval - y_new
+        finite = is_finite(H_new, y_new, proposal) & (new.result == optx.RESULTS.successful)
         converged = (k > 0) & (small_step(accepted, y_new - y, proposal, config.xtol)
                                | stagnant_cost(accepted, H, H_new, config.ftol))
         code = jnp.where(~finite, _NONFINITE,
@@ -153,7 +174,7 @@ def solve_least_squares(fn: Callable, solver: GaussNewtonFamily, q0: Float[Array
         s = jnp.linalg.svd(J, compute_uv=False)
         return jnp.sum(s > config.rank_rtol * s[0])
 
-    J_last = state.descent_state.J
+    J_last = _read_state(state).jacobian
     if rank_test is True:
         rank = svd_rank(J_last)
     else:

@@ -11,7 +11,7 @@ import numpy as np
 
 from .._errors import InputError
 from ..camera import as_rig
-from ..features import Features, validate_features
+from ..features import Features, raise_on_values, validate_features
 from ..kinematics import validate_q
 from ..model import Model
 from ..residuals import ResidualArgs, residuals, residuals_and_jacobian
@@ -55,8 +55,11 @@ def solver_named(name: str) -> str:
     return name
 
 
-def _fit_core(model: Model, rig: tuple, feats: tuple, q0, build: _Builder, config: FitConfig,
-              rank_test=True) -> FitResult:
+def fit_traced(model: Model, rig: tuple, feats: tuple, q0, build: _Builder, config: FitConfig,
+               rank_test=True) -> FitResult:
+    """The solve of :func:`fit` for traced use (no validation, not jitted): ``build`` and
+    ``config`` come from :func:`solver_program`; ``rank_test`` (a bool, or traced) runs the SVD
+    of the status's rank test."""
     space = StateSpace.of(model)
     q0 = space.normalize(q0)
     if build is make_bounded_trust_region:   # every iterate inside the limits, the start included
@@ -70,17 +73,19 @@ def _fit_core(model: Model, rig: tuple, feats: tuple, q0, build: _Builder, confi
 _DEFAULT_CONFIG = FitConfig()
 
 
-def _program(solver: str, config: FitConfig | None) -> tuple[_Builder, FitConfig]:
+def solver_program(solver: str, config: FitConfig | None) -> tuple[_Builder, FitConfig]:
+    """The static builder of ``solver``'s compiled program and the (checked, solver-adjusted)
+    config it runs with; raises :class:`~jaxhand.InputError` for an unknown name or a bad value."""
     build, configure = _SOLVERS[solver_named(solver)]
     return build, configure(_DEFAULT_CONFIG if config is None else check_config(config))
 
 
-_fit_jit = eqx.filter_jit(_fit_core)
+_fit_jit = eqx.filter_jit(fit_traced)
 
 
 @eqx.filter_jit
 def _fit_batch_jit(model, rig, feats, q0s, build, config):
-    return jax.vmap(lambda f, q: _fit_core(model, rig, f, q, build, config))(feats, q0s)
+    return jax.vmap(lambda f, q: fit_traced(model, rig, f, q, build, config))(feats, q0s)
 
 
 def fit(model: Model, cameras, features, q0, *, solver: str = "lm", config: FitConfig | None = None) -> FitResult:
@@ -104,7 +109,7 @@ def fit(model: Model, cameras, features, q0, *, solver: str = "lm", config: FitC
     Raises:
         InputError: wrong shapes, non-finite q0 or features, bad config values, unknown solver.
     """
-    build, config = _program(solver, config)
+    build, config = solver_program(solver, config)
     rig = as_rig(cameras)
     feats = validate_features(model, rig, features)
     q0 = validate_q(model, q0, name="q0")
@@ -122,7 +127,7 @@ def fit_batch(model: Model, cameras, features, q0, *, solver: str = "lm",
     Returns:
         A :class:`FitResult` whose fields have the leading axis B.
     """
-    build, config = _program(solver, config)
+    build, config = solver_program(solver, config)
     rig = as_rig(cameras)
     feats = _validate_batch_features(model, rig, features)
     B = int(np.asarray(feats[0].lines).shape[0])
@@ -179,16 +184,7 @@ def _validate_batch_features(model: Model, rig: tuple, features) -> tuple[Featur
                 B = a.shape[0]
             elif a.shape[0] != B:
                 raise InputError(f"features[{c}].{name}: batch size {a.shape[0]} differs from {B}")
-        lines, tips = np.asarray(f.lines), np.asarray(f.tips)
-        lv, tv = np.asarray(f.line_valid), np.asarray(f.tip_valid)
-        if not np.all(np.isfinite(lines[lv])) or not np.all(np.isfinite(tips[tv])):
-            raise InputError(f"features[{c}]: a valid line or tip holds NaN or inf")
-        if lv.any() and not np.allclose(np.linalg.norm(lines[lv][:, :2], axis=-1), 1.0, atol=1e-6):
-            raise InputError(f"features[{c}].lines: (a, b) must be unit normals where valid")
-        for name in ("line_weight", "tip_weight"):
-            w = np.asarray(getattr(f, name))
-            if not np.all(np.isfinite(w)) or np.any(w < 0):
-                raise InputError(f"features[{c}].{name}: weights must be finite and >= 0")
     if B == 0:
         raise InputError("features: the batch is empty")
+    raise_on_values(feats)   # the checks reduce over the batch axis too
     return feats

@@ -20,6 +20,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Bool, Float, PyTree, Scalar
 
+from ..kinematics import clip_to_limits, normalize_quaternion
 from ..model import Model
 
 __all__ = ["StateSpace", "GaussNewtonFamily", "Retracted", "StepLimited", "is_finite"]
@@ -58,18 +59,12 @@ class StateSpace(eqx.Module):
         return mask
 
     def normalize(self, q: Float[Array, " nq"]) -> Float[Array, " nq"]:
-        """q with its quaternion (if any) scaled to unit norm."""
-        if not self.has_quaternion:
-            return q
-        n = jnp.linalg.norm(q[:4])
-        # Guard: a zero quaternion cannot be normalised; keep it (the kinematics map it to the
-        # identity), and the safe denominator keeps both branches finite.
-        safe = jnp.where(n > 0, n, 1.0)
-        return q.at[:4].set(jnp.where(n > 0, q[:4] / safe, q[:4]))
+        """q with its quaternion (if any) scaled to unit norm (:func:`jaxhand.kinematics.normalize_quaternion`)."""
+        return normalize_quaternion(q, self.has_quaternion)
 
     def clip(self, q: Float[Array, " nq"]) -> Float[Array, " nq"]:
-        """q clipped into the limits (bounded entries only)."""
-        return jnp.where(self.bounded, jnp.clip(q, self.lower, self.upper), q)
+        """q clipped into the limits, bounded entries only (:func:`jaxhand.kinematics.clip_to_limits`)."""
+        return clip_to_limits(q, self.lower, self.upper, self.has_quaternion)
 
     def interior(self, q: Float[Array, " nq"], rel: float = 1e-10) -> Float[Array, " nq"]:
         """q clipped strictly inside the limits, by ``rel * max(1, |bound|)`` (bounded entries)."""

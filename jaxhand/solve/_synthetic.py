@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..camera import as_rig
-from ..features import Features, line_through
+from ..features import Features, features_from_points
 from ..kinematics import pose as pose_at
 from ..model import Model
 
@@ -45,16 +45,4 @@ def features_from_poses(model: Model, cameras, qs, *, noise_px: float = 0.0,
     rig = as_rig(cameras)
     qs = jnp.asarray(np.asarray(qs, dtype=float))
     rng = rng if rng is not None else np.random.default_rng(0)
-    out = []
-    for s, e, t in _project_all(model, rig, qs):
-        s, e, t = np.asarray(s), np.asarray(e), np.asarray(t)
-        if noise_px > 0:
-            s = s + rng.normal(0, noise_px, s.shape)
-            e = e + rng.normal(0, noise_px, e.shape)
-            t = t + rng.normal(0, noise_px, t.shape)
-        B = s.shape[0]
-        valid = np.linalg.norm(e - s, axis=-1) > 1e-6
-        out.append(Features(lines=line_through(jnp.asarray(s), jnp.asarray(e)), line_valid=jnp.asarray(valid),
-                            line_weight=jnp.ones((B, model.n_links)), tips=jnp.asarray(t),
-                            tip_valid=jnp.ones((B, model.n_tips), bool), tip_weight=jnp.ones((B, model.n_tips))))
-    return tuple(out)
+    return tuple(features_from_points(s, e, t, noise_px=noise_px, rng=rng) for s, e, t in _project_all(model, rig, qs))

@@ -9,6 +9,7 @@ given, like thesis figs. 6.2 and 6.6) and ``summary.json`` with accuracy and tim
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -17,12 +18,15 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from .camera import as_rig
-from .io import ResultWriter, pose_to_dict
-from .kinematics import project_pose
-from .model import Model
-from .track import StepReport, TrackConfig, Tracker
-from .viz import VideoWriter, draw_view, plot_joint_angles
+from ..camera import as_rig
+from ..image import ImageState
+from ..io import ResultWriter, pose_to_dict
+from ..kinematics import forward, project_pose
+from ..model import Model
+from ..viz import VideoWriter, draw_view, plot_joint_angles
+from ._config import TrackConfig, config_to_dict
+from ._frontend import AbstractFrontEnd, ImageFrontEnd
+from ._tracker import StepReport, Tracker
 
 __all__ = ["track_sequence", "accuracy_summary"]
 
@@ -33,7 +37,7 @@ def _overlay(model: Model, cameras, images, report: StepReport) -> np.ndarray:
     tiles = []
     for c, (cam, img) in enumerate(zip(cameras, images)):
         bgr = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if img.ndim == 2 else img.copy()
-        windows = (report.diagnostics or {}).get("windows") if isinstance(report.diagnostics, dict) else None
+        windows = report.diagnostics.windows
         if windows is not None and c < len(windows):
             for poly in windows[c]:
                 pts = np.asarray(poly, float).reshape(-1, 2)
@@ -57,8 +61,6 @@ def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarr
     per entry), and a free base's orientation ``palm_rotation_deg``, the angle of the rotation
     between the estimated and the true palm (quaternions, either sign).
     """
-    from .kinematics import forward
-
     err = np.abs(q_est - q_truth)
     angle = model.is_angle
     err_user = np.where(angle, np.degrees(err), err)
@@ -87,8 +89,8 @@ def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarr
     return out
 
 
-def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, extract, *,
-                   config: TrackConfig | None = None, truth: np.ndarray | None = None, video: bool = True,
+def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, frontend: AbstractFrontEnd | None = None,
+                   *, config: TrackConfig | None = None, truth: np.ndarray | None = None, video: bool = True,
                    progress: bool | None = None, max_frames: int | None = None) -> dict:
     """Track ``model`` through ``sources`` (one :class:`~jaxhand.io.FrameSource` per camera).
 
@@ -96,7 +98,8 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, extr
         q0: initial state (validated against the limits).
         out_dir: where ``angles.csv``, ``results.npz``, ``summary.json``, ``overlay.mp4`` and
             ``angles.png`` go (created if needed).
-        extract: the image front end callable (see :class:`~jaxhand.track.Tracker`).
+        frontend: the front end (default: an :class:`~jaxhand.ImageFrontEnd` with ``config.image``).
+        config: the run's settings, written whole into ``summary.json`` (``"config"``).
         truth: optional (frames, n_q) ground truth for plots and the accuracy summary.
         progress: show a progress bar (default: when stderr is a terminal).
         max_frames: stop after this many frames.
@@ -110,7 +113,10 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, extr
     cameras = as_rig(cameras)
     n = len(sources[0]) if max_frames is None else min(len(sources[0]), max_frames)
     fps = sources[0].fps
-    tracker = Tracker(model, cameras, extract, config, dt_s=1.0 / fps)
+    frontend = ImageFrontEnd(model, cameras, config.image) if frontend is None else frontend
+    if isinstance(frontend, ImageFrontEnd):   # the report records the settings the run used
+        config = dataclasses.replace(config, image=frontend.config)
+    tracker = Tracker(model, cameras, frontend, config, dt_s=1.0 / fps)
     state = tracker.init(q0)
     with ResultWriter(out, model) as writer:
         return _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, truth, video, progress,
@@ -154,7 +160,8 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
         if vw is not None:
             vw.close()
     elapsed = time.perf_counter() - started
-    summary: dict = {"frames": len(reports), "fps_input": fps, "config": dict(vars(config)),
+    summary: dict = {"frames": len(reports), "fps_input": fps, "config": config_to_dict(config),
+                     "front_end": type(tracker.frontend).__name__,
                      "theta_per_frame": tracker.theta,
                      "initial_pose": pose_to_dict(model, q0)}
     if reports:
@@ -181,7 +188,7 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
             summary["accuracy_filtered"] = accuracy_summary(model, cameras, q_f, q_t)
             summary["accuracy_solved"] = accuracy_summary(model, cameras, q_s, q_t)
         plot_joint_angles(model, times, q_f, out / "angles.png", q_truth=q_t, q_raw=q_s)
-    radius = getattr(state.image_state, "radius_mm", None)
+    radius = state.frontend_state.radius_mm if isinstance(state.frontend_state, ImageState) else None
     if radius is not None:   # the front end's phalanx width estimate (ImageConfig.width_gain)
         summary["link_radius_mm_estimated"] = dict(zip(model.link_names, np.asarray(radius, float).tolist()))
         summary["link_radius_mm_model"] = dict(zip(model.link_names, np.asarray(model.link_radius_mm).tolist()))

@@ -1,7 +1,7 @@
 """The tracker's fused per-frame program and the geometric residual Jacobian it solves with.
 
 - the fused step (solve, robust passes, filter in one compiled program) gives what the unfused
-  sequence of public calls gives (fit, feature_errors, reweight, fit, ..., the g-h-k step);
+  sequence of public calls gives (fit, feature_distances, reweight, fit, ..., the g-h-k step);
 - ``residuals_and_jacobian`` equals ``jax.jacfwd(residuals)`` (and central differences) on
   random poses of fixed, free and planar bases, with orthographic and perspective cameras,
   weights, masked slots holding NaN, points behind a perspective camera and a zero quaternion;
@@ -14,17 +14,21 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import CompileCounter, fit_camera
+from helpers import CompileCounter, FunctionFrontEnd, fit_camera, fixed_front_end
 
 import jaxhand as jh
 from jaxhand.camera import look_at_rotation
 from jaxhand.check import central_difference_jacobian
 from jaxhand.features import Features, features_from_pose
 from jaxhand.render import make_preset
-from jaxhand.residuals import make_residual_args, residuals, residuals_and_jacobian
+from jaxhand.residuals import feature_distances, make_residual_args, residuals, residuals_and_jacobian
 from jaxhand.solve import FitConfig, StateSpace, solve_least_squares
 from jaxhand.solve.levenberg_marquardt import make_levenberg_marquardt
-from jaxhand.track import TrackConfig, Tracker, _filter_step, exact_extractor, feature_errors, reweight
+from jaxhand.track import ExactFrontEnd, FilterConfig, LossConfig, RobustConfig, TrackConfig, Tracker, reweight
+from jaxhand.track._compiled import filter_update
+
+_filter_step = eqx.filter_jit(filter_update)
+_distances = eqx.filter_jit(feature_distances)
 
 _jacfwd_and_r = eqx.filter_jit(jax.jacfwd(lambda q, args: (residuals(q, args),) * 2, has_aux=True))
 _geometric = eqx.filter_jit(residuals_and_jacobian)
@@ -156,15 +160,15 @@ def _reference_step(tracker, state, features):
     """The tracker's frame, call by call as before the fused program: fit, then robust passes of
     feature_errors -> reweight -> fit, then the jitted g-h-k step (no loss on these frames)."""
     cfg = tracker.config
-    fit_config = FitConfig(max_steps=cfg.max_steps, jacobian=cfg.jacobian)
+    fit_config = cfg.fit
     q_pred = state.ghk.x
     result = jh.fit(tracker.model, tracker.cameras, features, q_pred, solver=cfg.solver, config=fit_config)
-    for _ in range(cfg.robust_passes):
-        errors = feature_errors(tracker.model, tracker.cameras, tuple(features), result.q, fit_config.link_fractions)
-        weighted = reweight(tuple(features), errors, cfg.robust_scale_px)
+    for _ in range(cfg.robust.passes):
+        errors = _distances(tracker.model, tracker.cameras, tuple(features), result.q, fit_config.link_fractions)
+        weighted = reweight(tuple(features), errors, cfg.robust.scale_px)
         result = jh.fit(tracker.model, tracker.cameras, weighted, result.q, solver=cfg.solver, config=fit_config)
     filtered, ghk = _filter_step(tracker.model, state.ghk, result.q, jnp.asarray(tracker.theta),
-                                 jnp.asarray(tracker.dt_s), cfg.filter)
+                                 jnp.asarray(tracker.dt_s), cfg.filter.enabled)
     return result, np.asarray(filtered), ghk
 
 
@@ -173,9 +177,9 @@ def test_fused_step_equals_the_unfused_calls(preset, solver):
     seq = make_preset(preset, frames=5, size=(160, 120))
     truth_features = [features_from_pose(seq.model, seq.cameras, q, noise_px=0.5, rng=np.random.default_rng(k))
                       for k, q in enumerate(seq.q)]
-    calls = iter(truth_features)
-    tracker = Tracker(seq.model, seq.cameras, lambda images, q, s: (next(calls), s, {}),
-                      TrackConfig(solver=solver, theta=0.6, gate_scale_px=0.0, reextract=0),
+    tracker = Tracker(seq.model, seq.cameras, FunctionFrontEnd(lambda images, q, s, frame: truth_features[frame]),
+                      TrackConfig(solver=solver, filter=FilterConfig(theta=0.6), robust=RobustConfig(gate_scale_px=0.0),
+                                  reextract=0),
                       dt_s=float(seq.times_s[1] - seq.times_s[0]))
     state = tracker.init(seq.q[0])
     for k in range(len(seq.q)):
@@ -198,15 +202,16 @@ def test_fused_step_compiles_once_per_structure():
     seq = make_preset("two_finger_occlusion", frames=12, size=(160, 120))
     dt = float(seq.times_s[1] - seq.times_s[0])
     images = [np.zeros((120, 160), np.uint8)]
-    tracker = Tracker(seq.model, seq.cameras, exact_extractor(seq.model, seq.cameras, seq.q), dt_s=dt)
+    tracker = Tracker(seq.model, seq.cameras, ExactFrontEnd(seq.model, seq.cameras, seq.q), dt_s=dt)
     state = tracker.init(seq.q[0])
     state, _ = tracker.step(state, images)
     with CompileCounter() as counter:
         for k in range(1, 6):
             state, rep = tracker.step(state, images, k)
         # a second tracker of the same structure, other numbers (filter, scores, frame rate)
-        other = Tracker(seq.model, seq.cameras, exact_extractor(seq.model, seq.cameras, seq.q[6:]),
-                        TrackConfig(theta=0.3, robust_scale_px=4.0, max_rms_px=9.0), dt_s=dt / 2)
+        other = Tracker(seq.model, seq.cameras, ExactFrontEnd(seq.model, seq.cameras, seq.q[6:]),
+                        TrackConfig(filter=FilterConfig(theta=0.3), robust=RobustConfig(scale_px=4.0),
+                                    loss=LossConfig(max_rms_px=9.0)), dt_s=dt / 2)
         s2 = other.init(seq.q[6])
         for k in range(3):
             s2, rep2 = other.step(s2, images, k)
@@ -233,7 +238,7 @@ def test_bad_features_raise_from_step():
                            (short, r"features\[0\]\.tips: expected shape \(2, 2\)"),
                            ((good, good), r"expected one Features per camera \(1\), got 2"),
                            (masked, None)):
-        tracker = Tracker(m, seq.cameras, lambda images, q, s, f=feats: (f, s, {}))
+        tracker = Tracker(m, seq.cameras, fixed_front_end(feats))
         state = tracker.init(seq.q[0])
         if message is None:
             _, rep = tracker.step(state, [None])
@@ -241,7 +246,7 @@ def test_bad_features_raise_from_step():
         else:
             with pytest.raises(jh.InputError, match=message):
                 tracker.step(state, [None])
-    with pytest.raises(jh.InputError, match="jacobian must be one of autodiff, geometric"):
-        TrackConfig(jacobian="numeric")
+    with pytest.raises(jh.InputError, match="fit.jacobian: expected one of autodiff, geometric"):
+        TrackConfig(fit=FitConfig(jacobian="numeric"))
     with pytest.raises(jh.InputError, match="config.jacobian"):
         jh.fit(m, seq.cameras, good, seq.q[0], config=FitConfig(jacobian="numeric"))

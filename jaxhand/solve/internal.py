@@ -1,0 +1,17 @@
+"""The solver's internal face: what the tracker (and other compiled programs) share with
+:func:`jaxhand.fit` for use inside their own traced code. Not a stable user API: names here may
+change with the package; users call :func:`jaxhand.fit`.
+
+- :func:`solver_program` checks a solver name and a :class:`~jaxhand.FitConfig` once, on the
+  host, and returns the static builder of the compiled program with the config it runs with;
+- :func:`fit_traced` is the body of :func:`jaxhand.fit` (no validation, no jit), to be traced
+  inside a caller's program (a robust loop, a frame step);
+- :func:`check_config` is the boundary check of a :class:`~jaxhand.FitConfig` that
+  :func:`jaxhand.fit` runs (for configs that carry one, such as the tracker's);
+- :data:`JACOBIANS` lists the values of :attr:`~jaxhand.FitConfig.jacobian`.
+"""
+
+from ._config import JACOBIANS, check_config
+from ._fit import fit_traced, solver_program
+
+__all__ = ["JACOBIANS", "check_config", "fit_traced", "solver_program"]

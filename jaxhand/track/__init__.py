@@ -1,0 +1,37 @@
+"""Tracking: a model through frames, one front end, one compiled solve-and-filter step per frame.
+
+- :class:`TrackConfig` (with :class:`FilterConfig`, :class:`RobustConfig`, :class:`LossConfig`,
+  a :class:`~jaxhand.FitConfig` and an :class:`~jaxhand.ImageConfig`): every setting of a run,
+  saved to and loaded from TOML (:func:`save_track_config`, :func:`load_track_config`);
+- :class:`AbstractFrontEnd` and its final implementations :class:`ImageFrontEnd` (the image
+  analysis) and :class:`ExactFrontEnd` (exact features of a known truth, for experiments);
+- :class:`Tracker` (``init``, ``step``), :class:`TrackState`, :class:`StepReport`;
+- :func:`track_sequence` (frames from disk to ``angles.csv``, ``summary.json``, overlay video)
+  and :func:`accuracy_summary`; :func:`frame_score`, the loss rule.
+"""
+
+from ._compiled import reweight
+from ._config import (
+    TRACK_CONFIG_VERSION,
+    FilterConfig,
+    LossConfig,
+    RobustConfig,
+    TrackConfig,
+    config_from_dict,
+    config_to_dict,
+    config_to_toml,
+    load_track_config,
+    save_track_config,
+)
+from ._frontend import AbstractFrontEnd, ExactFrontEnd, FrontEndDiagnostics, FrontEndResult, ImageFrontEnd
+from ._score import confidence_of, frame_score
+from ._sequence import accuracy_summary, track_sequence
+from ._tracker import StepReport, Tracker, TrackState
+
+__all__ = [
+    "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "TRACK_CONFIG_VERSION",
+    "config_to_dict", "config_from_dict", "config_to_toml", "save_track_config", "load_track_config",
+    "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd",
+    "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary",
+    "frame_score", "confidence_of", "reweight",
+]

@@ -1,0 +1,214 @@
+"""The tracker's compiled frame program: everything after the front end, in one call.
+
+Per frame the host makes one call and one fetch. :func:`frame_step` runs, traced once per model
+structure and settings: the gate and the robust solve (:func:`robust_solve`, its passes in one
+``lax.fori_loop``), the frame's score (:func:`~jaxhand.track.frame_score`), the g-h-k update and
+prediction (held still on a lost frame when :attr:`LossConfig.hold`), and the features' value
+checks (:func:`jaxhand.features.feature_value_checks`), so bad features are found without a
+host-side pass over them.
+
+Calling it cheaply from the host: :class:`FrameProgram` splits its constant arguments (model,
+cameras, solver, settings) once into array leaves and a :class:`_Static` handle on the rest,
+hashed once; :func:`_frame_jit` takes those plus flat tuples of arrays and returns the
+scalars packed in one vector. ``eqx.filter_jit`` would partition the whole model on every call,
+which costs more than a small model's solve (benchmarks/README.md).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+from ..features import Features, feature_value_checks
+from ..filter import GHKState, ghk_predict, ghk_update
+from ..kinematics import clip_q
+from ..model import Model
+from ..residuals import feature_distances
+from ..solve.internal import fit_traced, solver_program
+from ._config import TrackConfig
+from ._score import frame_score
+
+__all__ = ["FrameProgram", "frame_step", "robust_solve", "reweight", "filter_update", "SCALARS", "FEATURE_FIELDS"]
+
+#: The scalars of a :class:`_StepOut`, in the order :func:`_frame_jit` packs them.
+SCALARS = ("solved_ok", "cost", "iterations", "status", "rms_px", "valid_share", "confidence", "lost",
+           "features_ok")
+#: The fields of a :class:`~jaxhand.features.Features`, in the order :func:`_frame_jit` takes them.
+FEATURE_FIELDS = ("lines", "line_valid", "line_weight", "tips", "tip_valid", "tip_weight")
+
+
+def filter_update(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: bool
+                  ) -> tuple[Float[Array, " nq"], GHKState]:
+    """g-h-k update with the measured q, then the prediction for the next frame (both clipped)."""
+    if model.base_kind == "free":  # keep the measured quaternion in the prediction's hemisphere
+        flip = jnp.sign(jnp.dot(q_meas[:4], ghk.x[:4]))
+        q_meas = q_meas.at[:4].multiply(jnp.where(flip == 0, 1.0, flip))
+    if use_filter:
+        updated = ghk_update(ghk, q_meas, theta, dt_s)
+    else:
+        updated = GHKState(x=q_meas, v=jnp.zeros_like(q_meas), a=jnp.zeros_like(q_meas))
+    filtered = clip_q(model, updated.x)
+    updated = GHKState(x=filtered, v=updated.v, a=updated.a)
+    nxt = ghk_predict(updated, dt_s)
+    return filtered, GHKState(x=clip_q(model, nxt.x), v=nxt.v, a=nxt.a)
+
+
+def reweight(features: tuple, errors: tuple, scale_px) -> tuple:
+    """Features with Cauchy weights ``w / (1 + (e / scale)^2)`` from their distances
+    (:func:`jaxhand.residuals.feature_distances`), on the host or in jitted code alike."""
+    out = []
+    for f, (e_link, e_tip) in zip(features, errors):
+        out.append(eqx.tree_at(lambda g: (g.line_weight, g.tip_weight), f,
+                               (f.line_weight / (1.0 + (e_link / scale_px) ** 2),
+                                f.tip_weight / (1.0 + (e_tip / scale_px) ** 2))))
+    return tuple(out)
+
+
+class _StepNumbers(eqx.Module):
+    """The :class:`TrackConfig` numbers the frame program reads (traced: new values reuse it)."""
+
+    theta: Float[Array, ""]
+    dt_s: Float[Array, ""]
+    robust_scale_px: Float[Array, ""]
+    gate_scale_px: Float[Array, ""]
+    rms_scale_px: Float[Array, ""]
+    min_valid_share: Float[Array, ""]
+    max_rms_px: Float[Array, ""]
+
+
+class _StepOut(eqx.Module):
+    """One frame's solve, score and filter. ``q_solved`` is the measurement the filter took (the
+    prediction when the solve was not finite); ``status`` the last solve's Status code."""
+
+    q_solved: Float[Array, " nq"]
+    solved_ok: Bool[Array, ""]
+    cost: Float[Array, ""]
+    iterations: Int[Array, ""]
+    status: Int[Array, ""]
+    q_filtered: Float[Array, " nq"]
+    ghk: GHKState
+    rms_px: Float[Array, ""]
+    valid_share: Float[Array, ""]
+    confidence: Float[Array, ""]
+    lost: Bool[Array, ""]
+    features_ok: Bool[Array, ""]
+
+
+def robust_solve(model: Model, rig: tuple, feats: tuple, q0, build, fit_config, scale_px, passes: int,
+                 gate_px=0.0):
+    """Solve, then ``passes`` times reweight every feature by its distance at the last solution
+    (Cauchy weights of the *original* weights, :func:`reweight`) and solve again from there.
+
+    The passes run in one ``lax.fori_loop`` so the solver is traced (and compiled) once. Pass 0
+    weighs the features by their distances at ``q0`` with the scale ``gate_px`` (0 keeps the
+    original weights). Only the last pass runs the rank test (an SVD) of its status.
+    """
+    fractions = fit_config.link_fractions
+    gated = reweight(feats, feature_distances(model, rig, feats, q0, fractions),
+                     jnp.where(gate_px > 0, gate_px, 1.0))   # Guard: scale 0 means no gate
+    first = jax.tree_util.tree_map(lambda a, b: jnp.where(gate_px > 0, b, a), feats, gated)
+
+    def one_pass(i, result):
+        weighted = reweight(feats, feature_distances(model, rig, feats, result.q, fractions), scale_px)
+        weighted = jax.tree_util.tree_map(lambda a, b: jnp.where(i == 0, a, b), first, weighted)
+        return fit_traced(model, rig, weighted, result.q, build, fit_config, rank_test=i == passes)
+
+    start = jax.eval_shape(lambda: fit_traced(model, rig, feats, q0, build, fit_config))
+    start = jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), start)
+    start = eqx.tree_at(lambda r: r.q, start, q0)
+    return jax.lax.fori_loop(0, passes + 1, one_pass, start)
+
+
+def frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, q_start, build, fit_config,
+               numbers: _StepNumbers, passes: int, use_filter: bool, hold: bool) -> _StepOut:
+    """One frame after feature extraction: the robust solve from ``q_start`` (the prediction
+    ``ghk.x``, or an earlier solve of this frame that the features were searched around), the
+    score and loss flag, the g-h-k update and prediction (with ``hold``, a lost frame holds
+    ``q_last`` still), and the features' value check."""
+    q_pred = ghk.x
+    result = robust_solve(model, rig, feats, q_start, build, fit_config, numbers.robust_scale_px, passes,
+                          numbers.gate_scale_px)
+    ok = jnp.all(jnp.isfinite(result.q)) & jnp.isfinite(result.cost)
+    q_meas = jnp.where(ok, result.q, q_pred)
+    n_tips = sum(jnp.sum(f.tip_valid) for f in feats)
+    n_lines = sum(jnp.sum(f.line_valid) for f in feats)
+    n_res = jnp.maximum(1, 2 * n_tips + 2 * n_lines)
+    # Guard: the unused branch of a failed solve must stay finite.
+    rms = jnp.where(ok, jnp.sqrt(2.0 * jnp.where(ok, result.cost, 0.0) / n_res), jnp.inf)
+    total = sum(f.line_valid.shape[-1] + f.tip_valid.shape[-1] for f in feats)
+    share = (n_tips + n_lines) / max(total, 1)
+    conf, lost = frame_score(rms, share, numbers.rms_scale_px, numbers.min_valid_share, numbers.max_rms_px)
+    filtered, ghk_next = filter_update(model, ghk, q_meas, numbers.theta, numbers.dt_s, use_filter)
+    if hold:
+        # A lost frame's solve fits stray features: hold the last good estimate still (zero
+        # velocity and acceleration) instead of letting the filter extrapolate it.
+        filtered = jnp.where(lost, q_last, filtered)
+        ghk_next = GHKState(x=jnp.where(lost, q_last, ghk_next.x), v=jnp.where(lost, 0.0, ghk_next.v),
+                            a=jnp.where(lost, 0.0, ghk_next.a))
+    features_ok = functools.reduce(jnp.logical_and, [c for f in feats for c in feature_value_checks(f)])
+    return _StepOut(q_solved=q_meas, solved_ok=ok, cost=result.cost, iterations=result.iterations,
+                    status=result.status._value, q_filtered=filtered, ghk=ghk_next, rms_px=rms,
+                    valid_share=share, confidence=conf, lost=lost, features_ok=features_ok)
+
+
+class _Static:
+    """A hashable handle on the static half of a pytree, hashed once: as a ``jax.jit`` static
+    argument it costs no tree traversal per call, and equal halves (trackers of the same model
+    structure and settings) share one compiled program."""
+
+    __slots__ = ("value", "_hash")
+
+    def __init__(self, value):
+        self.value = value
+        self._hash = hash(value)
+
+    def __hash__(self) -> int:
+        return self._hash
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, _Static) and (other.value is self.value or other.value == self.value)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last, q_start):
+    """:func:`frame_step` with flat arguments and results: ``consts`` and ``static`` are the
+    leaves and the (tree, static half) of the constant arguments; ``feats`` one tuple of
+    :data:`FEATURE_FIELDS` per camera; ``ghk`` the filter's (x, v, a). Returns
+    ``(q_solved, q_filtered, scalars)`` with the :data:`SCALARS` packed in one float vector (all
+    exact in float64), and the next filter state (x, v, a)."""
+    treedef, static_half = static.value
+    parts = eqx.combine(jax.tree_util.tree_unflatten(treedef, consts), static_half)
+    model, rig, build, fit_config, numbers, passes, use_filter, hold = parts
+    out = frame_step(model, rig, tuple(Features(*f) for f in feats), GHKState(*ghk), q_last, q_start, build,
+                     fit_config, numbers, passes, use_filter, hold)
+    dtype = out.q_solved.dtype
+    scalars = jnp.stack([jnp.asarray(getattr(out, name), dtype) for name in SCALARS])
+    return (out.q_solved, out.q_filtered, scalars), (out.ghk.x, out.ghk.v, out.ghk.a)
+
+
+class FrameProgram:
+    """The frame program of one tracker: its constant arguments split once, called per frame.
+
+    Args:
+        model, rig: the model and the cameras.
+        config: the run's settings (the solver and its options checked once here).
+        theta: the g-h-k discount per frame at this frame interval; dt_s: the interval (s).
+    """
+
+    def __init__(self, model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float):
+        build, fit_config = solver_program(config.solver, config.fit)
+        numbers = _StepNumbers(*(jnp.asarray(float(v)) for v in (
+            theta, dt_s, config.robust.scale_px, config.robust.gate_scale_px, config.loss.rms_scale_px,
+            config.loss.min_valid_share, config.loss.max_rms_px)))
+        consts, static = eqx.partition((model, rig, build, fit_config, numbers, config.robust.passes,
+                                        config.filter.enabled, config.loss.hold), eqx.is_array)
+        leaves, treedef = jax.tree_util.tree_flatten(consts)
+        self._consts, self._static = tuple(leaves), _Static((treedef, static))
+
+    def __call__(self, feats: tuple, ghk: tuple, q_last, q_start):
+        """``(q_solved, q_filtered, scalars), (x, v, a)`` of one frame (see :func:`_frame_jit`)."""
+        return _frame_jit(self._static, self._consts, feats, ghk, q_last, q_start)

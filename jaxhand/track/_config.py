@@ -1,0 +1,294 @@
+"""TrackConfig: every setting of a tracking run in one nested, frozen, documented tree.
+
+One tree per run, no field declared at two levels: the solver's iteration cap and Jacobian live
+in :attr:`TrackConfig.fit` (a :class:`~jaxhand.FitConfig`), the image front end's settings in
+:attr:`TrackConfig.image`. Each field's docstring gives its unit and whether it is *static*
+(part of the compiled frame program: a new value compiles a new one) or *traced* (passed as an
+array: a new value reuses it); *host* fields never enter compiled code. Values are checked once,
+when the tree is built. :func:`config_to_dict` / :func:`config_from_dict` and
+:func:`save_track_config` / :func:`load_track_config` (TOML) reproduce a tree exactly; unknown
+keys are errors with a "did you mean" hint.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import json
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._errors import InputError
+from ..image import ImageConfig
+from ..solve import FitConfig, solver_named
+from ..solve.internal import check_config
+
+__all__ = ["TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "config_to_dict", "config_from_dict",
+           "save_track_config", "load_track_config", "config_to_toml", "TRACK_CONFIG_VERSION"]
+
+#: The ``format_version`` written into (and required of) saved tracking configs.
+TRACK_CONFIG_VERSION = 1
+
+
+def _need(ok: bool, where: str, message: str) -> None:
+    if not ok:
+        raise InputError(f"{where}: {message}")
+
+
+@dataclasses.dataclass(frozen=True)
+class FilterConfig:
+    """The g-h-k filter between frames (thesis eqs. 5.1-5.6).
+
+    Attributes:
+        enabled: static. Filter the solves (False: report and predict the raw solve).
+        theta: traced, per frame in [0, 1]. The discount factor at ``theta_rate_hz`` (thesis §6: 0.85).
+        theta_rate_hz: host, Hz. The frame rate at which ``theta`` holds; the tracker uses
+            ``theta ** (theta_rate_hz * dt_s)`` so the filter forgets the same share per second at
+            any rate. 0 (or None): ``theta`` is the discount per frame at any rate.
+    """
+
+    enabled: bool = True
+    theta: float = 0.85
+    theta_rate_hz: float = 25.0
+
+    def __post_init__(self):
+        if self.theta_rate_hz is None:
+            object.__setattr__(self, "theta_rate_hz", 0.0)
+        _need(isinstance(self.enabled, bool), "filter.enabled", f"expected true or false, got {self.enabled!r}")
+        _need(0.0 <= self.theta <= 1.0, "filter.theta", f"theta must lie in [0, 1], got {self.theta}")
+        _need(self.theta_rate_hz >= 0, "filter.theta_rate_hz",
+              f"theta_rate_hz must be > 0 Hz (or 0: per frame), got {self.theta_rate_hz}")
+
+    def theta_per_frame(self, dt_s: float) -> float:
+        """The discount for one frame of ``dt_s`` seconds."""
+        return float(self.theta if not self.theta_rate_hz else self.theta ** (self.theta_rate_hz * dt_s))
+
+
+@dataclasses.dataclass(frozen=True)
+class RobustConfig:
+    """Iteratively reweighted least squares against wrong image features.
+
+    Attributes:
+        passes: static. Re-solves after reweighting each feature by ``w / (1 + (e / scale_px)^2)``
+            of its distance e at the last solution (0: solve once, as the thesis does).
+        scale_px: traced, px. The Cauchy scale: a feature this far from the model halves its weight.
+        gate_scale_px: traced, px. The same Cauchy weight for the first solve, of each feature's
+            distance at the pose it was searched around (0: the front end's weights).
+    """
+
+    passes: int = 2
+    scale_px: float = 2.0
+    gate_scale_px: float = 2.0
+
+    def __post_init__(self):
+        _need(isinstance(self.passes, int) and self.passes >= 0, "robust.passes",
+              f"expected an integer >= 0, got {self.passes!r}")
+        _need(self.scale_px > 0, "robust.scale_px", f"must be > 0, got {self.scale_px}")
+        _need(self.gate_scale_px >= 0, "robust.gate_scale_px", f"must be >= 0, got {self.gate_scale_px}")
+
+
+@dataclasses.dataclass(frozen=True)
+class LossConfig:
+    """The frame's score and the loss-of-track rule (:func:`~jaxhand.track.frame_score`).
+
+    Attributes:
+        rms_scale_px: traced, px. The residual RMS at which the confidence halves.
+        min_valid_share: traced, in [0, 1]. Below this share of valid feature slots the frame is lost.
+        max_rms_px: traced, px. Above this residual RMS the frame is lost.
+        hold: static. On a lost frame report the last good estimate and predict it standing still.
+    """
+
+    rms_scale_px: float = 2.0
+    min_valid_share: float = 0.15
+    max_rms_px: float = 6.0
+    hold: bool = True
+
+    def __post_init__(self):
+        _need(self.rms_scale_px > 0, "loss.rms_scale_px", f"must be > 0, got {self.rms_scale_px}")
+        _need(0.0 <= self.min_valid_share <= 1.0, "loss.min_valid_share",
+              f"must lie in [0, 1], got {self.min_valid_share}")
+        _need(self.max_rms_px > 0, "loss.max_rms_px", f"must be > 0, got {self.max_rms_px}")
+        _need(isinstance(self.hold, bool), "loss.hold", f"expected true or false, got {self.hold!r}")
+
+
+def _tracker_fit() -> FitConfig:
+    # The tracker's solve: 20 iterations per frame and the geometric Jacobian (several times
+    # cheaper on the CPU than autodiff, equal to rounding; benchmarks/README.md).
+    return FitConfig(max_steps=20, jacobian="geometric")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class TrackConfig:
+    """Every setting of a tracking run (:class:`~jaxhand.Tracker`, :func:`~jaxhand.track_sequence`).
+
+    Attributes:
+        solver: static. The solver of :func:`jaxhand.fit` run per frame ("bounded": every iterate
+            inside the joint limits, so an occluded finger is not fitted into impossible poses).
+        fit: the solver's options (iterations per frame, Jacobian, tolerances; static and traced
+            as :class:`~jaxhand.FitConfig` says).
+        image: host. The image front end's settings (:class:`~jaxhand.ImageConfig`), used by the
+            :class:`~jaxhand.ImageFrontEnd` that :func:`~jaxhand.track_sequence` builds.
+        filter: the g-h-k filter (:class:`FilterConfig`).
+        robust: the gate and robust passes (:class:`RobustConfig`).
+        loss: the frame's score and the loss rule (:class:`LossConfig`).
+        reextract: host. Times the front end searches again around the solved pose, then the
+            frame is solved again from there (for front ends whose ``reextracts`` is true).
+        refresh_templates: host. After a frame that is not lost, let the front end refresh its
+            state (templates, widths) at the solved pose.
+    """
+
+    solver: str = "bounded"
+    fit: FitConfig = dataclasses.field(default_factory=_tracker_fit)
+    image: ImageConfig = dataclasses.field(default_factory=ImageConfig)
+    filter: FilterConfig = dataclasses.field(default_factory=FilterConfig)
+    robust: RobustConfig = dataclasses.field(default_factory=RobustConfig)
+    loss: LossConfig = dataclasses.field(default_factory=LossConfig)
+    reextract: int = 1
+    refresh_templates: bool = True
+
+    def __post_init__(self):
+        solver_named(self.solver)
+        for name, kind in (("fit", FitConfig), ("image", ImageConfig), ("filter", FilterConfig),
+                           ("robust", RobustConfig), ("loss", LossConfig)):
+            _need(isinstance(getattr(self, name), kind), name,
+                  f"expected a {kind.__name__}, got {type(getattr(self, name)).__name__}")
+        try:
+            check_config(self.fit)
+        except InputError as err:
+            raise InputError(f"fit.{str(err).removeprefix('config.')}") from None
+        _need(isinstance(self.reextract, int) and self.reextract >= 0, "reextract",
+              f"expected an integer >= 0, got {self.reextract!r}")
+        _need(isinstance(self.refresh_templates, bool), "refresh_templates",
+              f"expected true or false, got {self.refresh_templates!r}")
+
+    def __eq__(self, other) -> bool:   # by value: FitConfig holds arrays
+        return isinstance(other, TrackConfig) and config_to_dict(self) == config_to_dict(other)
+
+    def __hash__(self) -> int:
+        return hash(config_to_toml(self))
+
+    def merged(self, changes: dict) -> TrackConfig:
+        """A copy with the nested mapping ``changes`` (as in :func:`config_to_dict`) applied."""
+        return config_from_dict(_merge(config_to_dict(self), changes))
+
+
+def _merge(base: dict, changes: dict) -> dict:
+    out = dict(base)
+    for k, v in changes.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def _plain(value):
+    """A config value as plain Python (dicts, lists, numbers, strings, bools)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value) if f.init}
+    if isinstance(value, (tuple, list)):
+        return [_plain(v) for v in value]
+    if isinstance(value, (bool, str, int, float)) or value is None:
+        return value
+    a = np.asarray(value)
+    return a.tolist() if a.ndim else a.item()
+
+
+def config_to_dict(config: TrackConfig) -> dict:
+    """The whole tree as plain Python, with ``format_version`` (what ``summary.json`` holds)."""
+    return {"format_version": TRACK_CONFIG_VERSION, **_plain(config)}
+
+
+def _build(template, data, where: str):
+    """``type(template)`` from ``data``, missing keys taken from ``template``."""
+    if not isinstance(data, dict):
+        raise InputError(f"{where or 'config'}: expected a table, got {data!r}")
+    names = [f.name for f in dataclasses.fields(template) if f.init]
+    values = {n: getattr(template, n) for n in names}
+    for key, value in data.items():
+        if key not in values:
+            hint = difflib.get_close_matches(key, names, n=1)
+            raise InputError(f"{where + '.' if where else ''}{key}: unknown key"
+                             + (f"; did you mean {hint[0]!r}?" if hint else f"; valid keys: {', '.join(names)}"))
+        values[key] = _value(values[key], value, f"{where + '.' if where else ''}{key}")
+    try:
+        return type(template)(**values)
+    except (TypeError, ValueError) as err:
+        if isinstance(err, InputError):
+            raise
+        raise InputError(f"{where or 'config'}: {err}") from err
+
+
+def _value(template, value, where: str):
+    if dataclasses.is_dataclass(template):
+        return _build(template, value, where)
+    if isinstance(template, bool):
+        _need(isinstance(value, bool), where, f"expected true or false, got {value!r}")
+        return value
+    if isinstance(template, tuple):
+        _need(isinstance(value, (list, tuple)), where, f"expected a list, got {value!r}")
+        return tuple(value)
+    if isinstance(template, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    return value
+
+
+def config_from_dict(data: dict) -> TrackConfig:
+    """The :class:`TrackConfig` of :func:`config_to_dict`'s mapping; missing keys keep their
+    defaults, unknown ones raise :class:`~jaxhand.InputError` with a "did you mean" hint."""
+    data = dict(data)
+    version = data.pop("format_version", TRACK_CONFIG_VERSION)
+    _need(version == TRACK_CONFIG_VERSION, "format_version",
+          f"this jaxhand reads version {TRACK_CONFIG_VERSION}, got {version!r}")
+    return _build(TrackConfig(), data, "")
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")) if not math.isfinite(v) else repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise InputError(f"cannot write {v!r} to TOML")
+
+
+def _toml_lines(d: dict, prefix: tuple) -> list[str]:
+    # TOML has no null: a None is left out, and reading the file gives the field's default back
+    lines = [f"{k} = {_toml_value(v)}" for k, v in d.items() if not isinstance(v, dict) and v is not None]
+    for k, v in d.items():
+        if isinstance(v, dict):
+            lines += ["", f"[{'.'.join(prefix + (k,))}]"] + _toml_lines(v, prefix + (k,))
+    return lines
+
+
+def config_to_toml(config: TrackConfig) -> str:
+    """The whole tree as TOML text (every field, format version first)."""
+    return "\n".join(_toml_lines(config_to_dict(config), ())) + "\n"
+
+
+def save_track_config(config: TrackConfig, path: str | Path) -> None:
+    """Write ``config`` to a TOML file that :func:`load_track_config` reads back exactly."""
+    Path(path).write_text(config_to_toml(config))
+
+
+def load_track_config(path: str | Path) -> TrackConfig:
+    """Read a TOML tracking config (missing keys keep their defaults).
+
+    Raises:
+        InputError: naming the file and the key (unknown keys with a "did you mean" hint).
+    """
+    path = Path(path)
+    try:
+        data: dict[str, Any] = tomllib.loads(path.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as err:
+        raise InputError(f"{path}: {err}") from err
+    try:
+        return config_from_dict(data)
+    except InputError as err:
+        raise InputError(f"{path}: {err}") from None

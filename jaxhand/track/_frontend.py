@@ -1,0 +1,128 @@
+"""Front ends: what turns a frame's images into :class:`~jaxhand.features.Features`.
+
+The tracker measures with a front end and estimates with the solver; the front end never
+solves. :class:`AbstractFrontEnd` is the interface the tracker calls; the final classes are the
+image front end (:class:`ImageFrontEnd`) and the exact-feature oracle (:class:`ExactFrontEnd`).
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+from collections.abc import Mapping, Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..camera import as_rig
+from ..features import Features, features_from_pose
+from ..image import ImageConfig, ImageState, WindowOutlines, capture_templates, extract_features, update_widths
+from ..image.searches import TEMPLATE_SEARCHES
+from ..model import Model
+
+__all__ = ["AbstractFrontEnd", "FrontEndDiagnostics", "FrontEndResult", "ImageFrontEnd", "ExactFrontEnd"]
+
+@dataclasses.dataclass(frozen=True)
+class FrontEndDiagnostics:
+    """What a front end reports about one extraction besides the features.
+
+    Attributes:
+        windows: per camera, the visibility window polygons (a :class:`jaxhand.image.WindowOutlines`,
+            converted when read; for overlays), or None.
+        timings_s: the front end's own stage timings (s), e.g. ``{"visibility": ...}``.
+        method: the feature search used ("" when none).
+    """
+
+    windows: Sequence | None = None
+    timings_s: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    method: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
+class FrontEndResult:
+    """One extraction: the features (one per camera), the front end's next state, diagnostics."""
+
+    features: tuple[Features, ...]
+    state: Any
+    diagnostics: FrontEndDiagnostics = FrontEndDiagnostics()
+
+
+class AbstractFrontEnd(abc.ABC):
+    """The interface between the tracker and whatever measures features.
+
+    Subclasses implement :meth:`extract`; :meth:`refresh` (updating the state at the solved
+    pose) defaults to returning the state unchanged. :attr:`reextracts` says whether searching
+    again around the solved pose can find better features (:attr:`TrackConfig.reextract`).
+    """
+
+    #: Whether a second extraction around the solved pose of the same frame can help.
+    reextracts: ClassVar[bool] = True
+
+    @abc.abstractmethod
+    def extract(self, images: Sequence[np.ndarray], q_start: np.ndarray, state: Any, frame: int) -> FrontEndResult:
+        """Features of frame ``frame`` (its ``images``, one per camera) searched around the state
+        ``q_start``, given the front end's ``state`` (None before the first frame)."""
+
+    def refresh(self, images: Sequence[np.ndarray], q: np.ndarray, state: Any) -> Any:
+        """The front end's state updated at the solved pose ``q`` (after a frame not lost)."""
+        return state
+
+
+class ImageFrontEnd(AbstractFrontEnd):
+    """The image front end: :func:`jaxhand.image.extract_features` carrying its state
+    (templates, phalanx widths) from frame to frame.
+
+    :meth:`extract` searches around ``q_start``; on the first frame with
+    ``config.width_gain`` > 0 the radii measured at the hand-set pose replace the model's at
+    once. :meth:`refresh` re-estimates the widths and re-takes the templates at the solved pose
+    (thesis §4.3.1: templates come from unoccluded views); a search that keeps no templates with
+    no width estimate returns the state untouched.
+    """
+
+    reextracts: ClassVar[bool] = True
+
+    def __init__(self, model: Model, cameras, config: ImageConfig | None = None):
+        self.model, self.cameras = model, as_rig(cameras)
+        self.config = ImageConfig() if config is None else config
+
+    def extract(self, images, q_start, state: ImageState | None, frame: int) -> FrontEndResult:
+        q = np.asarray(q_start)
+        if self.config.width_gain > 0 and (state is None or state.radius_mm is None):
+            state = update_widths(images, self.model, self.cameras, q, self.config, state, gain=1.0,
+                                  fill_unmeasured=True)
+        features, diag = extract_features(images, self.model, self.cameras, q, self.config, state)
+        timings = dict(diag.timings_s) if diag.timings_s else {}
+        return FrontEndResult(tuple(features), diag.state,
+                              FrontEndDiagnostics(windows=WindowOutlines(diag), timings_s=timings, method=diag.method))
+
+    def refresh(self, images, q, state: ImageState | None) -> ImageState | None:
+        q = np.asarray(q)
+        if self.config.width_gain > 0:
+            state = update_widths(images, self.model, self.cameras, q, self.config, state)
+        if self.config.method not in TEMPLATE_SEARCHES:
+            return state
+        return capture_templates(images, self.model, self.cameras, q, self.config, state)
+
+
+class ExactFrontEnd(AbstractFrontEnd):
+    """An oracle for experiments: frame k gets the exact features of ``truth[k]`` in every camera
+    with Gaussian pixel noise of ``noise_px``, ignoring the images. Tracking with it measures
+    what the solver and the filter can do with perfect image analysis.
+
+    The noise of every frame is drawn at construction, frame after frame from one generator
+    seeded with ``seed``, so frame k's features depend on k alone, not on the calls before.
+    """
+
+    reextracts: ClassVar[bool] = False   # the same frame's features again gain nothing
+
+    def __init__(self, model: Model, cameras, truth, *, noise_px: float = 0.5, seed: int = 0):
+        rng = np.random.default_rng(seed)
+        self.model, self.cameras = model, as_rig(cameras)
+        self._features = tuple(features_from_pose(model, self.cameras, q, noise_px=noise_px, rng=rng)
+                               for q in np.asarray(truth))
+
+    def __len__(self) -> int:
+        return len(self._features)
+
+    def extract(self, images, q_start, state, frame: int) -> FrontEndResult:
+        return FrontEndResult(self._features[frame], state)

@@ -1,0 +1,187 @@
+"""The tracker: predict, extract features, solve, filter, once per frame (thesis chs. 4-6).
+
+Per frame k (thesis fig. 1.2):
+
+1. **predict** the state q̂_k with the g-h-k filter (thesis eqs. 5.4-5.6), clipped to the
+   joint limits;
+2. **extract features** from every camera around the prediction (the front end,
+   :class:`~jaxhand.track.AbstractFrontEnd`);
+3. **solve** for the pose q̃_k from those features starting at q̂_k (configurable solver and
+   iterations, including the thesis's fast mode of one update per frame), with robust passes;
+4. **filter**: refine q̃_k with the g-h-k update (eqs. 5.1-5.3) into the reported estimate;
+5. score the frame: residual RMS (px) and the share of valid features give a confidence in
+   [0, 1] and a loss-of-track flag. A failed or non-finite solve keeps the prediction.
+
+Steps 3-5 run as one compiled program (:mod:`jaxhand.track._compiled`); the loop over frames is
+host Python.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._errors import InputError
+from ..camera import as_rig
+from ..features import Features, raise_on_values, validate_features
+from ..filter import GHKState, ghk_init
+from ..kinematics import validate_q
+from ..model import Model
+from ..solve import STATUS_NAMES
+from ._compiled import FEATURE_FIELDS, SCALARS, FrameProgram
+from ._config import TrackConfig
+from ._frontend import AbstractFrontEnd, FrontEndDiagnostics
+
+__all__ = ["TrackState", "StepReport", "Tracker"]
+
+
+@dataclasses.dataclass(frozen=True)
+class TrackState:
+    """What the tracker carries between frames.
+
+    Attributes:
+        ghk: the filter state, whose x is the prediction for the next frame.
+        frontend_state: the front end's state (templates, widths; None before the first frame).
+        q_last: the last reported estimate (held on a lost frame).
+    """
+
+    ghk: GHKState
+    frontend_state: Any
+    q_last: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class StepReport:
+    """Exactly what gets written for one frame (angles in rad, pixels, seconds)."""
+
+    frame: int
+    time_s: float
+    q_pred: np.ndarray
+    q_solved: np.ndarray
+    q_filtered: np.ndarray
+    cost: float
+    rms_px: float
+    iterations: int
+    status: str
+    valid_share: float
+    confidence: float
+    lost: bool
+    timings_s: Mapping[str, float]
+    diagnostics: FrontEndDiagnostics
+
+
+class Tracker:
+    """Tracks one model through frames from one or more cameras.
+
+    Args:
+        model: the kinematic model.
+        cameras: a camera or a rig (tuple of cameras), in the order images are passed.
+        frontend: what measures the features (:class:`~jaxhand.ImageFrontEnd`,
+            :class:`~jaxhand.ExactFrontEnd`, or any :class:`~jaxhand.track.AbstractFrontEnd`).
+        config: the run's settings (:class:`~jaxhand.TrackConfig`).
+        dt_s: frame interval (s).
+    """
+
+    def __init__(self, model: Model, cameras, frontend: AbstractFrontEnd, config: TrackConfig | None = None,
+                 dt_s: float = 1 / 25):
+        if not isinstance(frontend, AbstractFrontEnd):
+            raise InputError(f"frontend: expected an AbstractFrontEnd, got {type(frontend).__name__}")
+        self.model, self.cameras, self.frontend = model, as_rig(cameras), frontend
+        self.config = config = TrackConfig() if config is None else config
+        if not dt_s > 0:
+            raise InputError(f"dt_s must be > 0, got {dt_s}")
+        self.dt_s = float(dt_s)
+        #: the g-h-k discount per frame at this frame interval (FilterConfig.theta_rate_hz)
+        self.theta = config.filter.theta_per_frame(self.dt_s)
+        self._program = FrameProgram(model, self.cameras, config, self.theta, self.dt_s)
+        self._rounds = 1 + (config.reextract if frontend.reextracts else 0)
+        self._dtype = jnp.asarray(0.0).dtype   # the working precision of the compiled step
+        self._lower, self._upper = np.asarray(model.q_lower), np.asarray(model.q_upper)
+        self._ghk_tree = jax.tree_util.tree_structure(ghk_init(jnp.zeros(model.n_q)))
+        nl, nt = model.n_links, model.n_tips
+        self._shapes = ((nl, 3), (nl,), (nl,), (nt, 2), (nt,), (nt,))
+
+    def _feature_arrays(self, features) -> tuple[tuple, ...]:
+        """The front end's features as one tuple of :data:`FEATURE_FIELDS` arrays per camera,
+        after the cheap host-side count and shape checks (values are checked in the program)."""
+        feats = tuple(features)
+        out = []
+        if len(feats) == len(self.cameras) and all(isinstance(f, Features) for f in feats):
+            for f in feats:
+                arrays = []
+                for name, shape in zip(FEATURE_FIELDS, self._shapes):
+                    a = getattr(f, name)
+                    if np.shape(a) != shape:
+                        break
+                    want = bool if name.endswith("valid") else self._dtype
+                    if not (isinstance(a, jax.Array) and a.dtype == want and not a.weak_type):
+                        a = jnp.asarray(np.asarray(a), dtype=want)
+                    arrays.append(a)
+                else:
+                    out.append(tuple(arrays))
+                    continue
+                break
+        if len(out) != len(self.cameras):
+            validate_features(self.model, self.cameras, feats)   # raises, naming the problem
+            raise InputError(f"features: expected one Features per camera ({len(self.cameras)})")
+        return tuple(out)
+
+    def init(self, q0, frontend_state=None) -> TrackState:
+        """The state before the first frame: the filter sits at q0 with zero velocity."""
+        q0 = validate_q(self.model, q0, name="initial pose", within_limits=True)
+        return TrackState(ghk=ghk_init(jnp.asarray(q0)), frontend_state=frontend_state, q_last=q0)
+
+    def step(self, state: TrackState, images: Sequence[np.ndarray], frame: int = 0, time_s: float = 0.0
+             ) -> tuple[TrackState, StepReport]:
+        """Process one frame (one image per camera; ``frame`` is passed to the front end).
+
+        After the front end, the compiled frame program runs and its results come back in one
+        transfer; the timings ``features`` (front end), ``solve`` (the program) and ``filter``
+        (the report on the host) split the frame. With ``config.reextract`` (and a front end
+        whose ``reextracts`` is true) the front end and the program run again from the solved
+        pose; ``features`` and ``solve`` then add up every round.
+        """
+        if len(images) != len(self.cameras):
+            raise InputError(f"expected one image per camera ({len(self.cameras)}), got {len(images)}")
+        q_pred = state.ghk.x
+        ghk = (state.ghk.x, state.ghk.v, state.ghk.a)
+        t_features = t_solve = 0.0
+        q_start, fe_state = q_pred, state.frontend_state
+        for _ in range(self._rounds):
+            t0 = time.perf_counter()
+            extracted = self.frontend.extract(images, q_start, fe_state, frame)
+            fe_state = extracted.state
+            t1 = time.perf_counter()
+            (q_meas, filtered, scalars), ghk_next = self._program(self._feature_arrays(extracted.features), ghk,
+                                                                  state.q_last, q_start)
+            q_pred_host, q_meas, filtered, scalars = jax.device_get((q_pred, q_meas, filtered, scalars))  # one fetch
+            out = dict(zip(SCALARS, scalars.tolist()))
+            t2 = time.perf_counter()
+            t_features, t_solve = t_features + (t1 - t0), t_solve + (t2 - t1)
+            if not out["features_ok"] or out["lost"]:  # nothing better to search around
+                break
+            q_start = np.clip(q_meas, self._lower, self._upper)
+        if not out["features_ok"]:
+            raise_on_values(tuple(extracted.features))   # raises, naming camera and field
+            raise InputError("features: a value check failed (see jaxhand.features.feature_value_checks)")
+        ok, lost = bool(out["solved_ok"]), bool(out["lost"])
+        t3 = time.perf_counter()
+        timings = {"features": t_features, "solve": t_solve, "filter": t3 - t2}
+        if not lost and self.config.refresh_templates:
+            fe_state = self.frontend.refresh(images, q_meas, fe_state)
+            timings["templates"] = time.perf_counter() - t3
+        diag = extracted.diagnostics
+        timings.update({f"features.{k}": v for k, v in diag.timings_s.items()})
+        report = StepReport(frame=frame, time_s=time_s, q_pred=np.asarray(q_pred_host), q_solved=q_meas,
+                            q_filtered=filtered, cost=out["cost"] if ok else float("nan"), rms_px=out["rms_px"],
+                            iterations=int(out["iterations"]), status=STATUS_NAMES[int(out["status"])],
+                            valid_share=out["valid_share"], confidence=out["confidence"], lost=lost,
+                            timings_s=timings, diagnostics=diag)
+        ghk_next = jax.tree_util.tree_unflatten(self._ghk_tree, ghk_next)
+        return TrackState(ghk=ghk_next, frontend_state=fe_state, q_last=filtered), report

@@ -1,0 +1,115 @@
+"""TrackConfig: defaults, validation, dict and TOML round trips, unknown keys."""
+
+import tomllib
+
+import numpy as np
+import pytest
+
+import jaxhand as jh
+from jaxhand.track import (
+    FilterConfig,
+    LossConfig,
+    RobustConfig,
+    TrackConfig,
+    config_from_dict,
+    config_to_dict,
+    config_to_toml,
+    load_track_config,
+    save_track_config,
+)
+
+
+def _leaves(config):
+    """Every value of the tree, flattened, with its path (bit-level comparison of floats)."""
+    out = {}
+
+    def walk(d, prefix):
+        for k, v in d.items():
+            if isinstance(v, dict):
+                walk(v, prefix + k + ".")
+            else:
+                out[prefix + k] = np.asarray(v).tobytes() + repr(type(v)).encode()
+    walk(config_to_dict(config), "")
+    return out
+
+
+def _odd_config():
+    """A config whose every section differs from the defaults, with awkward floats."""
+    return TrackConfig(solver="lm", fit=jh.FitConfig(max_steps=7, jacobian="autodiff", link_fractions=(0.1, 1 / 3, 0.9),
+                                                     xtol=1e-13, divergence_factor=np.inf),
+                       image=jh.ImageConfig(method="gaussian", reacquire_deg=(15.0, 30.5), width_gain=0.1),
+                       filter=FilterConfig(theta=0.1 + 0.2, theta_rate_hz=None, enabled=False),
+                       robust=RobustConfig(passes=0, scale_px=1e-3, gate_scale_px=0.0),
+                       loss=LossConfig(min_valid_share=2 / 3, hold=False), reextract=3, refresh_templates=False)
+
+
+def test_tracker_defaults_are_those_of_the_benchmarks():
+    c = TrackConfig()
+    assert (c.solver, c.fit.max_steps, c.fit.jacobian) == ("bounded", 20, "geometric")
+    assert (c.filter.theta, c.filter.theta_rate_hz, c.filter.enabled) == (0.85, 25.0, True)
+    assert (c.robust.passes, c.robust.scale_px, c.robust.gate_scale_px) == (2, 2.0, 2.0)
+    assert (c.loss.rms_scale_px, c.loss.min_valid_share, c.loss.max_rms_px, c.loss.hold) == (2.0, 0.15, 6.0, True)
+    assert (c.reextract, c.refresh_templates) == (1, True)
+    assert c.image == jh.ImageConfig()
+    # jaxhand.fit keeps its own defaults
+    assert (jh.FitConfig().max_steps, jh.FitConfig().jacobian) == (50, "autodiff")
+
+
+@pytest.mark.parametrize("config", [TrackConfig(), _odd_config()], ids=["default", "odd"])
+def test_dict_and_toml_round_trips_are_exact(config, tmp_path):
+    d = config_to_dict(config)
+    assert d["format_version"] == 1
+    back = config_from_dict(d)
+    assert back == config and _leaves(back) == _leaves(config)
+    assert isinstance(back.image.reacquire_deg, tuple) and isinstance(back.fit, jh.FitConfig)
+    text = config_to_toml(config)
+    assert config_from_dict(tomllib.loads(text)) == config
+    save_track_config(config, tmp_path / "run.toml")
+    loaded = load_track_config(tmp_path / "run.toml")
+    assert loaded == config and _leaves(loaded) == _leaves(config)
+    np.testing.assert_array_equal(np.asarray(loaded.fit.link_fractions), np.asarray(config.fit.link_fractions))
+
+
+def test_missing_keys_keep_their_defaults_and_merged_applies_changes():
+    assert config_from_dict({}) == TrackConfig()
+    c = config_from_dict({"filter": {"theta": 0.5}, "fit": {"max_steps": 3}})
+    assert c.filter.theta == 0.5 and c.filter.theta_rate_hz == 25.0 and c.fit.max_steps == 3
+    assert c.fit.jacobian == "geometric"   # the tracker's default, not FitConfig's
+    assert TrackConfig().merged({"loss": {"hold": False}}).loss == LossConfig(hold=False)
+
+
+@pytest.mark.parametrize("data, message", [
+    ({"filter": {"theta_rat_hz": 10}}, r"filter\.theta_rat_hz: unknown key; did you mean 'theta_rate_hz'\?"),
+    ({"solvr": "lm"}, r"solvr: unknown key; did you mean 'solver'\?"),
+    ({"image": {"search": {"sigmaa": 1.0}}}, r"image\.search\.sigmaa: unknown key; did you mean 'sigma'\?"),
+    ({"fit": {"max_stepz": 3}}, r"fit\.max_stepz: unknown key; did you mean 'max_steps'\?"),
+    ({"zzz": 1}, r"zzz: unknown key; valid keys: solver, fit"),
+    ({"format_version": 2}, r"format_version: this jaxhand reads version 1, got 2"),
+    ({"filter": {"theta": 1.5}}, r"filter\.theta: theta must lie in \[0, 1\]"),
+    ({"fit": {"jacobian": "numeric"}}, r"fit\.jacobian: expected one of autodiff, geometric"),
+    ({"solver": "gn2"}, r"unknown solver 'gn2'"),
+    ({"robust": {"passes": -1}}, r"robust\.passes: expected an integer >= 0"),
+    ({"reextract": -1}, r"reextract: expected an integer >= 0"),
+    ({"loss": {"hold": 1}}, r"loss\.hold: expected true or false"),
+    ({"filter": 3}, r"filter: expected a table"),
+])
+def test_bad_keys_and_values_name_the_field(data, message):
+    with pytest.raises(jh.InputError, match=message):
+        config_from_dict(data)
+
+
+def test_a_bad_file_names_the_file(tmp_path):
+    path = tmp_path / "run.toml"
+    path.write_text("format_version = 1\n[robust]\npases = 1\n")
+    with pytest.raises(jh.InputError, match=r"run\.toml: robust\.pases: unknown key; did you mean 'passes'\?"):
+        load_track_config(path)
+    path.write_text("solver = \n")
+    with pytest.raises(jh.InputError, match=r"run\.toml: "):
+        load_track_config(path)
+
+
+def test_theta_per_frame_follows_the_rate():
+    assert FilterConfig().theta_per_frame(0.04) == pytest.approx(0.85, abs=1e-12)
+    assert FilterConfig().theta_per_frame(0.1) == pytest.approx(0.85 ** 2.5)
+    assert FilterConfig(theta_rate_hz=None).theta_per_frame(0.1) == 0.85
+    assert FilterConfig(theta_rate_hz=None) == FilterConfig(theta_rate_hz=0.0)
