@@ -136,11 +136,12 @@ def frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, q_
     q_meas = jnp.where(ok, result.q, q_pred)
     n_tips = sum(jnp.sum(f.tip_valid) for f in feats)
     n_lines = sum(jnp.sum(f.line_valid) for f in feats)
-    n_res = jnp.maximum(1, 2 * n_tips + 2 * n_lines)
+    dtype = result.cost.dtype
+    n_res = jnp.maximum(1, 2 * n_tips + 2 * n_lines).astype(dtype)
     # Guard: the unused branch of a failed solve must stay finite.
     rms = jnp.where(ok, jnp.sqrt(2.0 * jnp.where(ok, result.cost, 0.0) / n_res), jnp.inf)
     total = sum(f.line_valid.shape[-1] + f.tip_valid.shape[-1] for f in feats)
-    share = (n_tips + n_lines) / max(total, 1)
+    share = (n_tips + n_lines).astype(dtype) / max(total, 1)
     conf, lost = frame_score(rms, share, numbers.rms_scale_px, numbers.min_valid_share, numbers.max_rms_px)
     filtered, ghk_next = filter_update(model, ghk, q_meas, numbers.theta, numbers.dt_s, use_filter)
     if hold:
