@@ -35,7 +35,7 @@ from .._errors import InputError
 from ..camera import as_rig
 from ..kinematics import validate_q
 from ..model import Model
-from ..solve import FitConfig, FitResult, Status, StateSpace, solve_least_squares
+from ..solve import FitConfig, FitResult, StateSpace, Status, solve_least_squares
 from ..solve.bounded_trust_region import make_bounded_trust_region
 from ..solve.levenberg_marquardt import make_levenberg_marquardt
 from ._convention import landmark_map

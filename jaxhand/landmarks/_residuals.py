@@ -88,14 +88,18 @@ def make_landmarks(px=None, *, n_cameras: int | None = None, px_valid=None, px_w
         raise InputError(f"landmarks px: expected shape (cams, {N_POINTS}, 2), got {px.shape}")
     batch = px.shape[:-3]
     nc = px.shape[-3]
-    valid = np.all(np.isfinite(px), -1) if px_valid is None else np.asarray(px_valid, bool) & np.all(np.isfinite(px), -1)
+    valid = np.all(np.isfinite(px), -1)
+    if px_valid is not None:
+        valid = valid & np.asarray(px_valid, bool)
     weight = np.broadcast_to(np.asarray(1.0 if px_weight is None else px_weight, float), batch + (nc, N_POINTS))
     if mm is None:
         mm = np.full(batch + (N_POINTS, 3), np.nan)
     mm = np.asarray(mm, dtype=float)
     if mm.shape != batch + (N_POINTS, 3):
         raise InputError(f"landmarks mm: expected shape {batch + (N_POINTS, 3)}, got {mm.shape}")
-    mvalid = np.all(np.isfinite(mm), -1) if mm_valid is None else np.asarray(mm_valid, bool) & np.all(np.isfinite(mm), -1)
+    mvalid = np.all(np.isfinite(mm), -1)
+    if mm_valid is not None:
+        mvalid = mvalid & np.asarray(mm_valid, bool)
     mweight = np.broadcast_to(np.asarray(mm_weight, float), batch + (N_POINTS,))
     for name, w in (("px_weight", weight), ("mm_weight", mweight)):
         if not np.all(np.isfinite(w)) or np.any(w < 0):
