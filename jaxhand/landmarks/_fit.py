@@ -143,7 +143,8 @@ def _status(finite, converged, singular):
 
 def batch_lm(fn, args, q0s: Float[Array, "B nq"], space: StateSpace, config: BatchConfig) -> FitResult:
     """The batch solver on problems ``args`` (pytree with leading axis B) from ``q0s``
-    (traceable). ``fn(q, args_one) -> (r, J)``."""
+    (traceable; computes in q0s's dtype). ``fn(q, args_one) -> (r, J)``."""
+    config = jax.tree_util.tree_map(lambda x: x.astype(q0s.dtype), config)   # follow the input dtype
     def solve_chunk(inputs):
         a, q0 = inputs
         q0 = jax.vmap(lambda q: space.normalize(space.clip(q)))(q0)

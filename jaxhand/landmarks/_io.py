@@ -26,7 +26,8 @@ with the CSV's columns as keys (``image_size`` and ``fps`` optional).
 
 Bad input: an unknown point name, a duplicate point, a landmark list that is not 21 points or a
 non-numeric value is an error naming the file, frame and point; NaN coordinates mask that point;
-frames missing between the first and the last become frames with no points; a frame with two
+frames missing between the first and the last become frames with no points, and points a
+frame does not list are masked; a frame with two
 hands keeps the one nearest the previous frame's (the first frame: the highest score). All of
 these are listed in :attr:`LandmarkSequence.notes`.
 """
@@ -144,9 +145,13 @@ def _fill(frames_seen: dict[int, dict], src: str, has_mm: bool, has_px: bool, no
     missing = [int(f) for f in frames if f not in frames_seen]
     if missing:
         notes["missing_frames"] = missing
-    bad = ~np.all(np.isfinite(px), -1) & np.array([[f in frames_seen for _ in range(N)] for f in frames])
-    if has_px and bad.any():
-        notes["nan_points"] = int(bad.sum())
+    absent = sum(N - len(pts) for pts in frames_seen.values())
+    if absent:
+        notes["absent_points"] = int(absent)
+    nan = sum(1 for pts in frames_seen.values() for p2, p3, _ in pts.values()
+              if (p2 is not None and not np.all(np.isfinite(p2))) or (p3 is not None and not np.all(np.isfinite(p3))))
+    if nan:
+        notes["nan_points"] = int(nan)
     conf = np.where(np.all(np.isfinite(px), -1) | (mm is not None and np.all(np.isfinite(mm), -1)), conf, 0.0)
     if not has_px:
         px[:] = np.nan
