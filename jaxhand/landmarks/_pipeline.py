@@ -241,7 +241,8 @@ def calibrate_landmarks(model: Model, cameras, landmarks: Landmarks, q_init, *, 
         (calibrated model, the solve's result, the shape parametrisation).
     """
     shape = hand_shape(model, palm=palm)
-    config = SequenceConfig(smooth_px_per_rad=0.0, smooth_px_per_mm=0.0) if config is None else config
+    config = SequenceConfig(smooth_px_per_rad=0.0, smooth_px_per_mm=0.0, scale_prior_px=1.0,
+                            offset_prior_px_per_mm=0.1, max_steps=100) if config is None else config
     res = fit_sequence(model, cameras, landmarks, q_init, shape=shape, config=config)
     return apply_shape(model, shape, res.theta), res, shape
 

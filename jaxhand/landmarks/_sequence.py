@@ -51,8 +51,11 @@ class SequenceConfig(eqx.Module):
         smooth_px_per_rad: traced. Weight of the change of an angle (or quaternion entry) between
             consecutive frames; 0 fits the frames independently (calibration over unrelated poses).
         smooth_px_per_mm: traced. The same for lengths (palm translation, prismatic joints).
-        scale_prior_px: traced. Weight of ``scale - 1`` (px per unit of scale).
-        offset_prior_px_per_mm: traced. Weight of a palm offset (px per mm).
+        scale_prior_px: traced. Weight of ``scale - 1`` (px per unit of scale). The default keeps a
+            one-camera fit of detector landmarks near the model's proportions (without it, the
+            real video's fit drove phalanges to the 0.5 and 1.7 bounds); calibration with 3-D
+            points uses 1 (:func:`~jaxhand.landmarks.calibrate_landmarks`).
+        offset_prior_px_per_mm: traced. Weight of a palm offset (px per mm); calibration uses 0.1.
         scale_bounds: traced (2,). Scales are clipped into [lo, hi].
         offset_bound_mm: traced. Palm offsets are clipped into [-bound, bound] mm.
         ftol: traced, relative. Stop when an accepted step lowers the cost by <= ftol * cost.
@@ -62,8 +65,8 @@ class SequenceConfig(eqx.Module):
     max_steps: int = eqx.field(static=True, default=60)
     smooth_px_per_rad: Float[Array, ""] = eqx.field(converter=_f, default=20.0)
     smooth_px_per_mm: Float[Array, ""] = eqx.field(converter=_f, default=0.5)
-    scale_prior_px: Float[Array, ""] = eqx.field(converter=_f, default=1.0)
-    offset_prior_px_per_mm: Float[Array, ""] = eqx.field(converter=_f, default=0.1)
+    scale_prior_px: Float[Array, ""] = eqx.field(converter=_f, default=20.0)
+    offset_prior_px_per_mm: Float[Array, ""] = eqx.field(converter=_f, default=1.0)
     scale_bounds: Float[Array, " 2"] = eqx.field(converter=_f, default=(0.5, 2.0))
     offset_bound_mm: Float[Array, ""] = eqx.field(converter=_f, default=30.0)
     ftol: Float[Array, ""] = eqx.field(converter=_f, default=1e-9)
