@@ -145,6 +145,9 @@ def batch_lm(fn, args, q0s: Float[Array, "B nq"], space: StateSpace, config: Bat
     """The batch solver on problems ``args`` (pytree with leading axis B) from ``q0s``
     (traceable; computes in q0s's dtype). ``fn(q, args_one) -> (r, J)``."""
     config = jax.tree_util.tree_map(lambda x: x.astype(q0s.dtype), config)   # follow the input dtype
+    # The cost rule cannot fire below the dtype's rounding of H: in float32 an ftol of 1e-8 never
+    # held and every lane ran to max_steps (benchmarks/landmarks.py: 34 median iterations vs 16).
+    config = eqx.tree_at(lambda c: c.ftol, config, jnp.maximum(config.ftol, 100 * jnp.finfo(q0s.dtype).eps))
     def solve_chunk(inputs):
         a, q0 = inputs
         q0 = jax.vmap(lambda q: space.normalize(space.clip(q)))(q0)
