@@ -145,9 +145,14 @@ def batch_lm(fn, args, q0s: Float[Array, "B nq"], space: StateSpace, config: Bat
     """The batch solver on problems ``args`` (pytree with leading axis B) from ``q0s``
     (traceable; computes in q0s's dtype). ``fn(q, args_one) -> (r, J)``."""
     config = jax.tree_util.tree_map(lambda x: x.astype(q0s.dtype), config)   # follow the input dtype
-    # The cost rule cannot fire below the dtype's rounding of H: in float32 an ftol of 1e-8 never
-    # held and every lane ran to max_steps (benchmarks/landmarks.py: 34 median iterations vs 16).
-    config = eqx.tree_at(lambda c: c.ftol, config, jnp.maximum(config.ftol, 100 * jnp.finfo(q0s.dtype).eps))
+    # The stopping rules cannot fire below the dtype's rounding: in float32 an ftol of 1e-8, an
+    # atol of 1e-12 px^2 and an xtol of 1e-9 never held and lanes ran to max_steps
+    # (benchmarks/landmarks.py: 34 median iterations vs 16 in float64). Floors from the dtype's
+    # eps (no effect in float64): ftol >= 100 eps, atol >= (1e4 eps)^2 px^2, xtol >= 1e3 eps.
+    eps = jnp.finfo(q0s.dtype).eps
+    config = eqx.tree_at(lambda c: (c.ftol, c.atol_px2, c.xtol), config,
+                         (jnp.maximum(config.ftol, 100 * eps), jnp.maximum(config.atol_px2, (1e4 * eps) ** 2),
+                          jnp.maximum(config.xtol, 1e3 * eps)))
     def solve_chunk(inputs):
         a, q0 = inputs
         q0 = jax.vmap(lambda q: space.normalize(space.clip(q)))(q0)
