@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint bench clean mediapipe
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -24,6 +24,14 @@ test: lint
 
 bench: $(STAMP)
 	for b in benchmarks/*.py; do $(PY) $$b || exit 1; done
+
+# MediaPipe 0.10.21 (the last release that ships its hand model) pins numpy<2 and its own opencv
+# and jax: it gets an environment of its own, used by `jaxhand landmarks VIDEO -o FILE --python ...`.
+MP_VENV := .venv-mediapipe
+mediapipe:
+	test -x $(MP_VENV)/bin/python || python3.11 -m venv $(MP_VENV)
+	$(MP_VENV)/bin/python -m pip install --quiet "mediapipe==0.10.21" "numpy<2"
+	@echo "run: jaxhand landmarks VIDEO -o FILE --python $(MP_VENV)/bin/python"
 
 clean:
 	rm -rf $(VENV) .pytest_cache build *.egg-info

@@ -26,6 +26,7 @@ _COMMANDS = [
     "jaxhand.cli_models",
     "jaxhand.cli_track",
     "jaxhand.cli_synth",
+    "jaxhand.cli_landmarks",
 ]
 
 
