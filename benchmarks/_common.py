@@ -24,6 +24,10 @@ from pathlib import Path
 import jax
 import numpy as np
 
+import jaxhand
+
+jaxhand.enable_x64()   # every benchmark imports this module before building anything
+
 __all__ = ["REPO", "RESULTS", "block", "time_call", "median_seconds", "first_call_seconds", "environment",
            "load_average", "format_table", "write_json"]
 

@@ -67,6 +67,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # this checkout
 from _common import REPO, RESULTS, environment, first_call_seconds, median_seconds, time_call, write_json  # noqa: E402
 
 import jaxhand as jh  # noqa: E402
+
+jh.enable_x64()
 from jaxhand.image import SEARCH_NAMES, ImageConfig, capture_templates, extract_features  # noqa: E402
 from jaxhand.image.internal import INTERPOLATION_FLAGS, as_grey, sample_profiles  # noqa: E402
 from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402

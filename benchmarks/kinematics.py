@@ -54,6 +54,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import REPO, RESULTS, block, environment, load_average  # noqa: E402
 
 import jaxhand as jh  # noqa: E402
+
+jh.enable_x64()
 from jaxhand.check import autodiff_jacobian, geometric_jacobian, keypoint_pixels, keypoints  # noqa: E402
 
 DEFAULT_OUT = RESULTS / "kinematics.json"

@@ -35,6 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, environment, first_call_seconds, format_table, median_seconds, write_json  # noqa: E402
 
 import jaxhand as jh  # noqa: E402
+
+jh.enable_x64()
 from jaxhand.kinematics import pose  # noqa: E402
 from jaxhand.landmarks import (  # noqa: E402
     BatchConfig,

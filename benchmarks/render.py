@@ -44,6 +44,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import REPO, RESULTS, environment, first_call_seconds, time_call, write_json  # noqa: E402
 
 import jaxhand as jh  # noqa: E402
+
+jh.enable_x64()
 from jaxhand.render import RenderConfig, fit_perspective, make_preset, render_frame  # noqa: E402
 from jaxhand.render._frame import pill_geometry  # noqa: E402
 

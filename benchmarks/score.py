@@ -48,6 +48,8 @@ from _common import REPO, RESULTS, environment, format_table, median_seconds, wr
 from helpers import fit_camera  # noqa: E402
 
 import jaxhand as jh  # noqa: E402
+
+jh.enable_x64()
 from jaxhand.model import builtin_model  # noqa: E402
 from jaxhand.render import render_frame  # noqa: E402
 from jaxhand.score import (  # noqa: E402

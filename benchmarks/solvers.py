@@ -64,6 +64,8 @@ from _common import (  # noqa: E402
 )
 
 import jaxhand as jh  # noqa: E402
+
+jh.enable_x64()
 from jaxhand.residuals import DEFAULT_LINK_FRACTIONS, ResidualArgs, residuals  # noqa: E402
 from jaxhand.solve import SOLVERS, features_from_poses  # noqa: E402
 

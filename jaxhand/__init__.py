@@ -1,15 +1,12 @@
 """jaxhand: model-based tracking of articulated objects (first of all the human hand).
 
-Importing jaxhand enables JAX's float64 mode: Jacobian checks against finite differences and
-solver tolerances of 1e-10 on the cost need double precision, and on the CPU the small dense
-problems of hand tracking cost about the same in float64 as in float32.
+jaxhand computes in float64 and asks for it: call :func:`enable_x64` once at the start (the CLI
+does). Importing jaxhand changes nothing in JAX's global settings, so a program's own float32
+code keeps its behaviour; building a model with float64 off is a one-line error saying what to do.
 """
 
-import jax as _jax
-
-_jax.config.update("jax_enable_x64", True)
-
 from ._errors import CameraError, InputError, JaxhandError, JaxhandWarning, ModelFileError, OutputExistsError  # noqa: E402
+from ._precision import enable_x64, x64_enabled  # noqa: E402
 from .camera import Orthographic, Perspective, as_rig, load_camera, save_camera  # noqa: E402
 from .features import Features, features_from_pose  # noqa: E402
 from .image import ImageConfig, ImageState, capture_templates, extract_features  # noqa: E402
@@ -45,6 +42,7 @@ from .track import (  # noqa: E402
 __version__ = "0.1.0"
 
 __all__ = [
+    "enable_x64", "x64_enabled",
     "JaxhandError", "ModelFileError", "InputError", "CameraError", "OutputExistsError", "JaxhandWarning",
     "Model", "builtin_model", "builtin_names", "get_model", "load_model", "save_model", "model_from_dict",
     "model_to_dict",

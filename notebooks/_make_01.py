@@ -42,6 +42,8 @@ from jaxhand.camera import look_at_rotation
 from jaxhand.check import autodiff_jacobian, jacobian_errors, projected_geometric_jacobian
 from jaxhand.viz import sketch_model
 
+jh.enable_x64()   # jaxhand computes in float64 (it asks rather than switching it on at import)
+
 # Show figures inline (importing jaxhand.viz selects matplotlib's non-interactive Agg backend).
 %matplotlib inline
 

@@ -53,6 +53,8 @@ from jaxhand.viz import plot_line
 from jaxhand.residuals import cost, make_residual_args, residuals
 from jaxhand.solve import features_from_poses
 
+jh.enable_x64()   # jaxhand computes in float64 (it asks rather than switching it on at import)
+
 %matplotlib inline
 """)
 

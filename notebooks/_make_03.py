@@ -52,6 +52,8 @@ from jaxhand.features import features_from_pose
 from jaxhand.image import SEARCH_NAMES, ImageConfig, capture_templates, extract_features
 from jaxhand.render import RenderConfig, make_preset, render_frame
 
+jh.enable_x64()   # jaxhand computes in float64 (it asks rather than switching it on at import)
+
 %matplotlib inline
 
 RENDER = RenderConfig(antialias=3)

@@ -45,6 +45,8 @@ import numpy as np
 
 import jaxhand as jh
 
+jh.enable_x64()   # jaxhand computes in float64 (it asks rather than switching it on at import)
+
 from jaxhand.render import RenderConfig, make_preset, render_frame
 from jaxhand.track import ExactFrontEnd, FilterConfig, ImageFrontEnd, TrackConfig, Tracker, accuracy_summary
 from jaxhand.viz import draw_view, joint_groups

@@ -56,6 +56,8 @@ from jaxhand.render import RenderConfig, fit_perspective, make_preset, render_fr
 from jaxhand.track import ExactFrontEnd, FilterConfig, ImageFrontEnd, TrackConfig, Tracker, accuracy_summary
 from jaxhand.viz import draw_view
 
+jh.enable_x64()   # jaxhand computes in float64 (it asks rather than switching it on at import)
+
 # Show figures inline (importing jaxhand.viz selects matplotlib's non-interactive Agg backend).
 %matplotlib inline
 

@@ -12,6 +12,8 @@ import pytest
 from jaxhand.image.internal import edges_to_px
 
 SCRIPT = """
+import jax
+jax.config.update("jax_enable_x64", True)
 from jaxtyping import install_import_hook
 with install_import_hook(["jaxhand.image"], "beartype.beartype"):
     import jaxhand.image as im

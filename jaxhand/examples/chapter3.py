@@ -366,4 +366,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    from .._precision import enable_x64
+
+    enable_x64()
     raise SystemExit(main())

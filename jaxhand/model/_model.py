@@ -13,6 +13,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._precision import require_x64
+
 __all__ = ["Model", "JOINT_KINDS", "BASE_KINDS", "AXES", "HANDEDNESS"]
 
 JOINT_KINDS = ("revolute", "prismatic", "fixed")
@@ -115,6 +117,7 @@ class Model(eqx.Module):
     handedness: str = eqx.field(static=True, default="none")
 
     def __check_init__(self):
+        require_x64("Model")
         n = len(self.frame_names)
         for field in ("parents", "joint_kinds", "q_index"):
             if len(getattr(self, field)) != n:

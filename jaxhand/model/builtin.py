@@ -202,27 +202,33 @@ def _planar(kind: str) -> Callable[[], dict[str, Any]]:
     return lambda: _spec(f"planar_{kind}", desc, frames, {"kind": "fixed", "rotation": R})
 
 
-def _mirrored(make: Callable[[], dict[str, Any]], description: str) -> Callable[[], dict[str, Any]]:
-    """The file dictionary of the mirror image of a built-in (see :mod:`._mirror`)."""
-    def spec() -> dict[str, Any]:
+class _Mirrored:
+    """The file dictionary of the mirror image of a built-in (see :mod:`._mirror`), built when
+    called; its description is known without building it."""
+
+    def __init__(self, make: Callable[[], dict[str, Any]], description: str):
+        self.make, self.description = make, description
+
+    def __call__(self) -> dict[str, Any]:
         from ._file import model_to_dict
         from ._mirror import mirror_model
 
-        d = model_to_dict(mirror_model(model_from_dict(make())))
-        return {"format_version": d.pop("format_version"), "name": d.pop("name"), "description": description, **d}
-    return spec
+        d = model_to_dict(mirror_model(model_from_dict(self.make())))
+        return {"format_version": d.pop("format_version"), "name": d.pop("name"), "description": self.description,
+                **d}
 
 
 _BUILTINS: dict[str, Callable[[], dict[str, Any]]] = {
     "index": _index, "index_thumb": _index_thumb, "two_fingers": _two_fingers, "hand21": _hand21,
-    "hand21_right": _mirrored(_hand21, "Right hand: the mirror image of hand21 (same joints, limits and signs)"),
+    "hand21_right": _Mirrored(_hand21, "Right hand: the mirror image of hand21 (same joints, limits and signs)"),
     "hand27": _hand27,
-    "hand27_right": _mirrored(_hand27, "Right hand on a free palm: the mirror image of hand27 (palm quaternion "
+    "hand27_right": _Mirrored(_hand27, "Right hand on a free palm: the mirror image of hand27 (palm quaternion "
                               "x, y and translation z change sign, see mirror_q)"),
     "mouse3d": _mouse3d,
     "planar_r": _planar("r"), "planar_p": _planar("p"), "planar_pr": _planar("pr"), "planar_rr": _planar("rr"),
 }
-BUILTIN_DESCRIPTIONS = {name: f()["description"] for name, f in _BUILTINS.items()}
+BUILTIN_DESCRIPTIONS = {name: f.description if isinstance(f, _Mirrored) else f()["description"]
+                        for name, f in _BUILTINS.items()}
 
 
 def builtin_names() -> tuple[str, ...]:

@@ -70,14 +70,13 @@ def fit_traced(model: Model, rig: tuple, feats: tuple, q0, build: _Builder, conf
                                rank_test=rank_test)
 
 
-_DEFAULT_CONFIG = FitConfig()
 
 
 def solver_program(solver: str, config: FitConfig | None) -> tuple[_Builder, FitConfig]:
     """The static builder of ``solver``'s compiled program and the (checked, solver-adjusted)
     config it runs with; raises :class:`~jaxhand.InputError` for an unknown name or a bad value."""
     build, configure = _SOLVERS[solver_named(solver)]
-    return build, configure(_DEFAULT_CONFIG if config is None else check_config(config))
+    return build, configure(FitConfig() if config is None else check_config(config))
 
 
 _fit_jit = eqx.filter_jit(fit_traced)

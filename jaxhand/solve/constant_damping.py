@@ -23,13 +23,15 @@ Program: the damped family of :mod:`._damped` with eta = 1 and no cap (shared wi
 from __future__ import annotations
 
 import equinox as eqx
+import jax.numpy as jnp
 
 from ._config import FitConfig
-from .gauss_newton import _INF, _ONE
+from .gauss_newton import fixed
 
 __all__ = ["constant_damping_config"]
 
 
 def constant_damping_config(config: FitConfig) -> FitConfig:
     """``config`` with eta = 1 and no step caps; mu is the config's."""
-    return eqx.tree_at(lambda c: (c.eta, c.max_step_rad, c.max_step_mm), config, (_ONE, _INF, _INF))
+    return eqx.tree_at(lambda c: (c.eta, c.max_step_rad, c.max_step_mm), config,
+                       (fixed(1.0), fixed(jnp.inf), fixed(jnp.inf)))

@@ -28,11 +28,13 @@ from ._config import FitConfig
 
 __all__ = ["gauss_newton_config"]
 
-_MU = jnp.asarray(0.0, dtype=float)   # not weakly typed, like FitConfig fields: no recompile
-_ONE = jnp.asarray(1.0, dtype=float)
-_INF = jnp.asarray(jnp.inf, dtype=float)
+def fixed(value: float):
+    """A config number fixed by a solver, made when its program is configured (in the dtype then in
+    force) and not weakly typed, like FitConfig fields, so it causes no recompile."""
+    return jnp.asarray(value, dtype=float)
 
 
 def gauss_newton_config(config: FitConfig) -> FitConfig:
     """``config`` with mu = 0, eta = 1 and no step caps: the damped family becomes eq. 3.4."""
-    return eqx.tree_at(lambda c: (c.mu, c.eta, c.max_step_rad, c.max_step_mm), config, (_MU, _ONE, _INF, _INF))
+    return eqx.tree_at(lambda c: (c.mu, c.eta, c.max_step_rad, c.max_step_mm), config,
+                       (fixed(0.0), fixed(1.0), fixed(jnp.inf), fixed(jnp.inf)))

@@ -28,11 +28,11 @@ from __future__ import annotations
 import equinox as eqx
 
 from ._config import FitConfig
-from .gauss_newton import _MU
+from .gauss_newton import fixed
 
 __all__ = ["step_limited_config"]
 
 
 def step_limited_config(config: FitConfig) -> FitConfig:
     """``config`` with mu = 0 (Gauss-Newton's step); eta and the caps are the config's."""
-    return eqx.tree_at(lambda c: c.mu, config, _MU)
+    return eqx.tree_at(lambda c: c.mu, config, fixed(0.0))

@@ -1,0 +1,39 @@
+"""jaxhand computes in float64, and asks for it explicitly instead of switching it on at import.
+
+JAX's ``jax_enable_x64`` flag is global: turning it on changes the default dtype of every new
+array in the whole program. So ``import jaxhand`` leaves it alone; :func:`enable_x64` turns it
+on, and the entry points that build jaxhand's arrays (models, and with them everything else)
+call :func:`require_x64`, which says in one line what to do when it is off.
+"""
+
+from __future__ import annotations
+
+import jax
+
+from ._errors import InputError
+
+__all__ = ["enable_x64", "require_x64", "x64_enabled"]
+
+
+def enable_x64() -> None:
+    """Turn on JAX's float64 mode for the whole process (``jax_enable_x64``), which jaxhand needs:
+    Jacobian checks against finite differences and cost tolerances of 1e-10 need double
+    precision. Call it once, before building models or arrays; the CLI calls it itself."""
+    jax.config.update("jax_enable_x64", True)
+
+
+def x64_enabled() -> bool:
+    """Whether JAX's float64 mode is on."""
+    return bool(jax.config.jax_enable_x64)
+
+
+def require_x64(where: str = "jaxhand") -> None:
+    """Raise unless float64 is on.
+
+    Raises:
+        InputError: telling the user to call :func:`jaxhand.enable_x64` (or set JAX_ENABLE_X64=1).
+    """
+    if not x64_enabled():
+        raise InputError(f"{where}: jaxhand computes in float64, which is off: call jaxhand.enable_x64() once at "
+                         "the start of the program (or set JAX_ENABLE_X64=1); it turns on jax_enable_x64 for "
+                         "the whole process")
