@@ -21,6 +21,7 @@ _COMMANDS = [
     "jaxhand.cli_models",
     "jaxhand.cli_track",
     "jaxhand.cli_synth",
+    "jaxhand.cli_batch",
 ]
 
 
