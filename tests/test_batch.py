@@ -156,17 +156,21 @@ def test_an_interrupted_batch_writes_its_summary_and_says_how_to_resume(tmp_path
     import jaxhand.batch._runner as runner
 
     path = tmp_path / "jobs.toml"
-    path.write_text("[[jobs]]\nname='a'\ninputs='x'\n[[jobs]]\nname='b'\ninputs='y'\n")
+    path.write_text("[[jobs]]\nname='a'\ninputs='x'\n[[jobs]]\nname='b'\ninputs='y'\n[[jobs]]\nname='c'\ninputs='z'\n")
 
     def interrupted(todo, out, workers, scheduler, records, show, log):
         records["a"] = {"name": "a", "status": "done", "summary": {"frames": 5, "frames_per_second_end_to_end": 2.0}}
+        (out / "b").mkdir()
+        (out / "b" / "angles.csv").write_text("frame,time_s\n0,0.0\n")     # b was cut short
         raise KeyboardInterrupt
 
     monkeypatch.setattr(runner, "_run_jobs", interrupted)
     assert main(["batch", str(path), "--out", str(tmp_path / "out")]) == 130
-    assert "interrupted; 1 of 2 jobs finished" in capsys.readouterr().err
+    assert "interrupted; 1 of 3 jobs finished, 1 cut short" in capsys.readouterr().err
     report = json.loads((tmp_path / "out" / "batch_summary.json").read_text())
-    assert [(r["name"], r["status"], r["frames"]) for r in report["jobs"]] == [("a", "done", 5), ("b", "not run", None)]
+    assert [(r["name"], r["status"], r["frames"]) for r in report["jobs"]] == [
+        ("a", "done", 5), ("b", "interrupted", None), ("c", "not run", None)]
+    assert report["totals"] == {"done": 1, "skipped": 0, "failed": 0, "interrupted": 1, "not run": 1}
 
 
 def _assert_same_outputs(out, ref):

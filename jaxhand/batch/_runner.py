@@ -195,12 +195,16 @@ def run_batch(manifest: Manifest, out_dir: str | Path, *, workers: int | None = 
                       sys.stderr.isatty() if progress is None else progress, log)
     except KeyboardInterrupt:
         interrupted = True
+        for job in todo:   # cut short: its finished frames are in its angles.csv, the rerun starts it over
+            if job.name not in records and (out / job.name / "angles.csv").exists():
+                records[job.name] = {"name": job.name, "status": "interrupted", "summary": None}
     rows = write_batch_summary(manifest, out, records)
     done = sum(r["status"] in ("done", "skipped") for r in rows)
     failed = [r for r in rows if r["status"] == "failed"]
     if interrupted:
-        print(f"jaxhand batch: interrupted; {done} of {len(rows)} jobs finished (their frames and those of the "
-              "jobs cut short are on disk); run the same command again to resume", file=log)
+        cut = sum(r["status"] == "interrupted" for r in rows)
+        print(f"jaxhand batch: interrupted; {done} of {len(rows)} jobs finished, {cut} cut short (their finished "
+              "frames are in their angles.csv); run the same command again to resume", file=log)
         raise KeyboardInterrupt
     for r in failed:
         print(f"jaxhand batch: job {r['name']!r} failed: {r['error']} (see {out / r['name'] / ERROR_FILE})", file=log)
@@ -222,8 +226,11 @@ def _run_jobs(todo: list[Job], out: Path, workers, scheduler, records: dict, sho
         else:
             n = workers or min(os.cpu_count() or 1, len(todo))
             with pinned_environment():
-                cluster = stack.enter_context(LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                                           dashboard_address=None))
+                # No dashboard, and the scheduler's HTTP endpoints on a free port: several batches
+                # (or other Dask clusters) on one machine then start without clashing over 8787.
+                cluster = stack.enter_context(LocalCluster(
+                    n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                    scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"}))
             client = stack.enter_context(Client(cluster))   # closed before the cluster
         n_workers = len(client.scheduler_info(n_workers=-1).get("workers", {})) if scheduler else n
         print(f"jaxhand batch: {len(todo)} jobs on {n_workers} worker(s)"

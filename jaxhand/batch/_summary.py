@@ -20,7 +20,7 @@ __all__ = ["summary_rows", "write_batch_summary", "plot_batch_summary", "COLUMNS
 COLUMNS = {
     "name": None,
     "command": None,
-    "status": None,                      # done | skipped (finished earlier) | failed | not run
+    "status": None,              # done | skipped (finished earlier) | failed | interrupted | not run
     "frames": "frames",
     "frames_per_second": "frames_per_second_end_to_end",
     "frames_per_second_steady": "frames_per_second_steady",
@@ -75,7 +75,8 @@ def write_batch_summary(manifest: Manifest, out_dir: str | Path, records: dict[s
             writer.writerow({k: "" if v is None else (f"{v:.6g}" if isinstance(v, float) else v)
                              for k, v in row.items()})
     report = {"format_version": 1, "manifest": str(manifest.path), "jobs": rows,
-              "totals": {s: sum(r["status"] == s for r in rows) for s in ("done", "skipped", "failed", "not run")}}
+              "totals": {s: sum(r["status"] == s for r in rows) for s in ("done", "skipped", "failed", "interrupted",
+                                                                     "not run")}}
     (out / "batch_summary.json").write_text(json.dumps(report, indent=2) + "\n")
     plot_batch_summary(rows, out / "batch_summary.png")
     return rows
@@ -97,7 +98,7 @@ def plot_batch_summary(rows: list[dict], path: str | Path) -> None:
         values = [r[col] if isinstance(r[col], int | float) and math.isfinite(r[col]) else 0.0 for r in rows]
         ax.bar(x, values, color=["tab:grey" if r["status"] == "skipped" else "tab:blue" for r in rows])
         for i, r in enumerate(rows):
-            if r["status"] in ("failed", "not run"):
+            if r["status"] in ("failed", "interrupted", "not run"):
                 ax.text(i, 0, r["status"], rotation=90, ha="center", va="bottom", color="tab:red", fontsize=8)
         ax.set_ylabel(label)
         ax.grid(axis="y", alpha=0.3)
