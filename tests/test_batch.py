@@ -206,7 +206,7 @@ def test_batch_on_two_workers_equals_single_commands_and_resumes(sequences, tmp_
     manifest.write_text("name,inputs,no_video\n*,,true\n"
                         + "".join(f"j{i},{seq}\n" for i, seq in enumerate(sequences)) + f"bad,{tmp_path / 'no'}\n")
     out = tmp_path / "batch"
-    rows = run_batch(load_manifest(manifest), out, workers=2, progress=False)
+    rows = run_batch(load_manifest(manifest), out, workers=2, progress=True)
     assert [(r["name"], r["status"]) for r in rows] == [("j0", "done"), ("j1", "done"), ("j2", "done"),
                                                         ("bad", "failed")]
     assert "--model is required" in rows[3]["error"] and (out / "bad" / "error.json").exists()
@@ -221,10 +221,18 @@ def test_batch_on_two_workers_equals_single_commands_and_resumes(sequences, tmp_
     csv_rows = (out / "batch_summary.csv").read_text().splitlines()
     assert csv_rows[0].startswith("name,command,status,frames,frames_per_second,") and len(csv_rows) == 5
     assert (out / "batch_summary.png").stat().st_size > 0
-    # A rerun skips the finished jobs untouched and tries the failed one again.
+    # A rerun skips the finished jobs untouched and tries the failed one again, here on a running
+    # cluster given by its address.
+    from distributed import LocalCluster
+
     stamps = {i: (out / f"j{i}" / "summary.json").stat().st_mtime_ns for i in range(3)}
-    rows = run_batch(load_manifest(manifest), out, workers=1, progress=False)
+    with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None,
+                      scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"}) as cluster:
+        rows = run_batch(load_manifest(manifest), out, scheduler=cluster.scheduler_address, progress=False)
     assert [r["status"] for r in rows] == ["skipped", "skipped", "skipped", "failed"]
     assert {i: (out / f"j{i}" / "summary.json").stat().st_mtime_ns for i in range(3)} == stamps
     assert rows[3]["worker"] is not None and rows[0]["frames"] == 6
-    assert "3 of 4 jobs finished earlier, skipped" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "3 of 4 jobs finished earlier, skipped" in err
+    assert f"1 job(s) on 1 worker(s) at {cluster.scheduler_address}" in err
+    assert "jobs: 100%" in err          # the progress bar of the first run

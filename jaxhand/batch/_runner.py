@@ -232,8 +232,8 @@ def _run_jobs(todo: list[Job], out: Path, workers, scheduler, records: dict, sho
                     n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                     scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"}))
             client = stack.enter_context(Client(cluster))   # closed before the cluster
-        n_workers = len(client.scheduler_info(n_workers=-1).get("workers", {})) if scheduler else n
-        print(f"jaxhand batch: {len(todo)} jobs on {n_workers} worker(s)"
+        n_workers = len(client.nthreads()) if scheduler else n
+        print(f"jaxhand batch: {len(todo)} job(s) on {n_workers} worker(s)"
               f"{f' at {scheduler}' if scheduler else ''}", file=log)
         futures = {client.submit(run_job, job.name, job.argv(out), str(out / job.name), pure=False,
                                  key=f"jaxhand-batch-{job.name}-{time.time_ns()}"): job for job in todo}
