@@ -174,7 +174,7 @@ def run_batch(manifest: Manifest, out_dir: str | Path, *, workers: int | None = 
         One record per job, in manifest order (see :func:`jaxhand.batch.summary_rows`).
     """
     log = sys.stderr if log is None else log
-    out = Path(out_dir)
+    out = Path(out_dir).absolute()      # the workers' working folder may differ from ours
     out.mkdir(parents=True, exist_ok=True)
     if workers is not None and workers < 1:
         raise InputError(f"--workers: expected an integer >= 1, got {workers}")
