@@ -86,12 +86,39 @@ def test_manifest_errors_are_one_line_naming_row_and_column(text, path, match):
 def test_fit_landmarks_is_accepted_only_where_the_command_exists():
     from jaxhand.batch._manifest import _command_parsers
 
-    text = "[[jobs]]\nname='a'\ncommand='fit-landmarks'\ninputs='lm.csv'\n"
+    text = "[[jobs]]\nname='a'\ncommand='fit-landmarks'\ninputs='lm.csv'\nmodel='hand21'\ncamera='cam.json'\n"
     if "fit-landmarks" in _command_parsers():
         assert parse_manifest(text, "m.toml").jobs[0].args[:2] == ("fit-landmarks", "lm.csv")
     else:
         with pytest.raises(InputError, match="'fit-landmarks' is not available in this jaxhand"):
             parse_manifest(text, "m.toml")
+
+
+def test_defaults_apply_where_the_command_has_the_option_and_inputs_fills_its_positional(monkeypatch):
+    """With a stand-in ``fit-landmarks`` parser (LANDMARKS, --model, --camera, --out), as on the
+    landmark branch: a track-only default stays out of its jobs, and ``inputs`` names LANDMARKS."""
+    import argparse
+
+    import jaxhand.batch._manifest as manifest
+
+    real = manifest._command_parsers
+
+    def parsers():
+        fit = argparse.ArgumentParser(prog="jaxhand fit-landmarks")
+        fit.add_argument("landmarks", metavar="LANDMARKS")
+        fit.add_argument("--model")
+        fit.add_argument("--camera", action="append")
+        fit.add_argument("--out", required=True)
+        return {**real(), "fit-landmarks": fit}
+
+    monkeypatch.setattr(manifest, "_command_parsers", parsers)
+    m = parse_manifest("name,command,inputs,model,steps\n*,,,hand21,5\nt,track,seq,,\nf,fit-landmarks,lm.json,,\n",
+                       "m.csv")
+    assert [j.args for j in m.jobs] == [("track", "seq", "--model", "hand21", "--steps", "5"),
+                                        ("fit-landmarks", "lm.json", "--model", "hand21")]
+    with pytest.raises(InputError, match=r"line 2 \(job 'f'\), column 'steps': not an option of 'jaxhand "
+                                         r"fit-landmarks'"):
+        parse_manifest("name,command,landmarks,steps\nf,fit-landmarks,lm.json,5\n", "m.csv")
 
 
 def test_the_cli_reports_a_bad_manifest_in_one_line_before_starting(tmp_path, capsys):
