@@ -9,8 +9,8 @@ Three ways, timed end to end from the shell's point of view, in one run:
 - ``batch_1`` / ``batch_2``: one ``jaxhand batch jobs.csv --out DIR --workers N`` process (cluster
   start, workers that import and compile once, the report).
 
-Each command runs as ``python -m jaxhand.cli`` from this checkout (what the ``jaxhand`` console
-script runs). Reported: wall seconds, jobs/s, frames/s and ``speedup_vs_loop`` (loop wall time over
+Each command runs as ``python -m jaxhand.cli`` (what the ``jaxhand`` console script runs) with the
+jaxhand this script imports. Reported: wall seconds, jobs/s, frames/s and ``speedup_vs_loop`` (loop wall time over
 batch wall time), plus each batch's first-job and later-job compile counts from its report. The
 machine's load average is recorded next to the figures: on a shared machine they are noisy.
 
@@ -34,8 +34,12 @@ from _common import REPO, RESULTS, environment, format_table, load_average, writ
 
 
 def _jaxhand(*args: str) -> float:
-    """Seconds one ``jaxhand`` command takes as its own process (output discarded, status checked)."""
-    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    """Seconds one ``jaxhand`` command takes as its own process (output discarded, status checked),
+    with the jaxhand this script imported (the one that rendered the inputs)."""
+    import jaxhand
+
+    root = str(Path(jaxhand.__file__).resolve().parent.parent)
+    env = {**os.environ, "PYTHONPATH": root + os.pathsep + os.environ.get("PYTHONPATH", "")}
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "jaxhand.cli", *args], env=env, cwd=REPO, capture_output=True,
                           text=True)

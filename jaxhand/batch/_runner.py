@@ -140,6 +140,18 @@ def pinned_environment(env: dict[str, str] = WORKER_ENV):
         os.environ.update(saved)
 
 
+#: Seconds a local cluster may have no worker (all died and could not be restarted) before the
+#: jobs still waiting are failed.
+NO_WORKER_TIMEOUT_S = 120.0
+
+
+def _workerless(client, since: float | None) -> float | None:
+    """Since when (``time.monotonic``) the cluster has had no worker, or None while it has one."""
+    if client.nthreads():
+        return None
+    return time.monotonic() if since is None else since
+
+
 def _progress_bars(total: int, enabled: bool):
     from tqdm import tqdm
 
@@ -239,10 +251,21 @@ def _run_jobs(todo: list[Job], out: Path, workers, scheduler, records: dict, sho
                                  key=f"jaxhand-batch-{job.name}-{time.time_ns()}"): job for job in todo}
         jobs_bar, frames_bar = _progress_bars(len(todo), show)
         finished_frames = 0
+        no_workers_since, checked = None, time.monotonic()
         try:
             pending = as_completed(futures)
             while not pending.is_empty():
-                for fut in pending.next_batch(block=False) if show else [next(pending)]:
+                if not scheduler and time.monotonic() - checked > 5.0:
+                    checked = time.monotonic()
+                    no_workers_since = _workerless(client, no_workers_since)
+                if no_workers_since is not None and time.monotonic() - no_workers_since > NO_WORKER_TIMEOUT_S:
+                    for fut, job in futures.items():     # nothing left to run them: fail them, keep the rest
+                        if job.name not in records:
+                            fut.cancel()
+                            records[job.name] = {"name": job.name, "status": "failed", "summary": None,
+                                                 "error": "the local cluster lost all its workers"}
+                    break
+                for fut in pending.next_batch(block=False):
                     job = futures[fut]
                     try:
                         record = fut.result()
@@ -256,7 +279,7 @@ def _run_jobs(todo: list[Job], out: Path, workers, scheduler, records: dict, sho
                     running = [futures[f] for f in futures if f.status == "pending"]
                     frames_bar.n = finished_frames + sum(_rows_written(out / j.name) for j in running)
                     frames_bar.refresh()
-                    time.sleep(0.25)
+                time.sleep(0.25)
         except KeyboardInterrupt:
             for fut in futures:
                 fut.cancel()
