@@ -28,6 +28,7 @@ _COMMANDS = [
     "jaxhand.cli_track",
     "jaxhand.cli_synth",
     "jaxhand.cli_landmarks",
+    "jaxhand.cli_batch",
 ]
 
 
