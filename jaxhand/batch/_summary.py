@@ -1,7 +1,7 @@
 """The batch report: ``batch_summary.csv`` and ``.json`` (one row per job) and a plot.
 
 Each row comes from the job's run record and its ``summary.json`` (the keys
-:func:`jaxhand.run.track_sequence` writes: ``frames``, ``frames_per_second_end_to_end``,
+:func:`jaxhand.track.track_sequence` writes: ``frames``, ``frames_per_second_end_to_end``,
 ``accuracy_filtered.joint_error_deg.mean``, ...); a key a command does not write stays empty.
 """
 
