@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo test lint bench clean mediapipe
+.PHONY: demo test test-fast lint bench clean mediapipe
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -21,6 +21,10 @@ lint: $(STAMP)
 
 test: lint
 	$(PY) -m pytest -n 2 tests
+
+# The quick loop: everything but the tests marked slow (notebooks, end-to-end runs, clusters).
+test-fast: lint
+	$(PY) -m pytest -n 2 -m "not slow" tests
 
 bench: $(STAMP)
 	for b in benchmarks/*.py; do $(PY) $$b || exit 1; done

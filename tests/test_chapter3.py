@@ -10,6 +10,8 @@ from jaxhand.examples import chapter3 as ch3
 from jaxhand.features import features_from_pose
 from jaxhand.residuals import ResidualArgs, cost, residual_jacobian, residuals
 
+pytestmark = pytest.mark.slow   # end to end: left out of `make test-fast`
+
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):

@@ -42,6 +42,7 @@ def test_sketch_writes_pngs(tmp_path, capsys):
     assert len(paths) == 2 and all(p.endswith(".png") for p in paths)
 
 
+@pytest.mark.slow
 def test_track_a_synth_folder_end_to_end(tmp_path, capsys):
     from jaxhand.track import FilterConfig, RobustConfig, TrackConfig, config_to_dict, save_track_config
 

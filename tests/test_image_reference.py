@@ -12,6 +12,8 @@ import reference_image as ref
 import jaxhand.image as im
 from jaxhand.render import RenderConfig, make_preset, render_frame
 
+pytestmark = pytest.mark.slow   # end to end: left out of `make test-fast`
+
 PRESETS = {  # preset: (frames, picked frames); the picks include crossings and bent fingers
     "full_hand_spread_flex": (60, (5, 30, 52)),
     "two_finger_occlusion": (80, (30, 40, 55)),

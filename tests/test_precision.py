@@ -4,6 +4,10 @@ process has it on)."""
 import subprocess
 import sys
 
+import pytest
+
+pytestmark = pytest.mark.slow   # fresh interpreters: left out of `make test-fast`
+
 SCRIPT = """
 import jax, jax.numpy as jnp
 import jaxhand as jh

@@ -17,6 +17,7 @@ def seq():
     return make_preset("two_finger_occlusion", frames=30, size=(160, 120))
 
 
+@pytest.mark.slow
 def test_oracle_tracking_is_accurate_and_compiles_once(seq):
     tracker = Tracker(seq.model, seq.cameras, oracle(seq.model, seq.cameras, seq.q),
                       TrackConfig(filter=FilterConfig(theta=0.5)), dt_s=float(seq.times_s[1] - seq.times_s[0]))

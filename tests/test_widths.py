@@ -88,6 +88,7 @@ def test_front_end_uses_the_estimated_radii(hand):
         ImageConfig(width_gain=1.5)
 
 
+@pytest.mark.slow
 def test_tracking_a_thinner_hand_recovers_its_widths_and_the_pose(hand):
     # hand21 with every phalanx 20% thinner than the model: with the model's radii the front end's
     # profiles and windows are too wide and the estimate goes far off; estimating the widths
