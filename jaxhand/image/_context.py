@@ -19,7 +19,7 @@ from ._diagnostics import Clock
 from ._sampling import as_grey, sample_profiles
 from ._state import ImageState
 from ._trackers import LinkSamplers, place_link_samplers
-from ._visibility import Visibility, compute_visibility, inside_polygons, same_chain, window_masks
+from ._visibility import Visibility, compute_visibility, same_chain
 
 __all__ = ["CameraContext", "Observation", "observe", "end_radii", "off_other_links", "against_background",
            "as_images", "prepare", "matching_state", "layout"]
@@ -102,7 +102,7 @@ def observe(ctx: CameraContext, q: np.ndarray) -> Observation:
     clock.lap("visibility")
     values, usable = sample_profiles(ctx.grey, samplers.points, config.samplers.interpolation)
     clock.lap("sampling")
-    window = window_masks(vis.windows, samplers.points) & usable
+    window = vis.window_mask(samplers.points) & usable
     clock.lap("visibility")
     return Observation(start=start, end=end, tips=np.asarray(view.tips_px, float), samplers=samplers,
                        visibility=vis, values=values, usable=usable, window=window)
@@ -116,9 +116,7 @@ def off_other_links(obs: Observation, points: np.ndarray, links: np.ndarray | No
     L = len(outlines)
     links = np.arange(L) if links is None else np.asarray(links, int)
     pts = np.asarray(points, float)
-    # (links, ..., L): each point, each outline; shapely's prepared predicate (edges=None) is
-    # faster here than the NumPy edge test of inside_polygons.
-    inside = inside_polygons(outlines, pts, edges=None)
+    inside = obs.visibility.inside_outlines(pts)  # (links, ..., L): each point, each outline
     own = np.arange(L) == links.reshape((-1,) + (1,) * (pts.ndim - 1))
     return ~np.any(inside & ~own, axis=-1)
 

@@ -14,7 +14,7 @@ from ._context import CameraContext, Observation, against_background, end_radii,
 from ._sampling import sample_profiles
 from ._trackers import place_link_samplers
 from ._view import View, find_tips, search_view
-from ._visibility import compute_visibility, window_masks
+from ._visibility import compute_visibility
 from .searches import TEMPLATE_SEARCHES
 
 __all__ = ["reacquire", "reacquire_full", "turns_to_try", "search_turns", "parent_links", "Turns"]
@@ -114,7 +114,7 @@ def search_turns(ctx: CameraContext, links: np.ndarray, qs: Sequence[np.ndarray]
     pts = samplers.points[searched]
     values, usable = sample_profiles(ctx.grey, pts, config.samplers.interpolation)
     clock.lap("sampling")
-    window = window_masks(vis.rows(searched).windows, pts) & usable
+    window = vis.rows(searched).window_mask(pts) & usable
     clock.lap("visibility")
 
     def observe_turn(i: int) -> Observation:

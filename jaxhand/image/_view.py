@@ -11,7 +11,6 @@ from ._context import CameraContext, Observation, against_background, off_other_
 from ._lines import axial_line, line_params, offset_towards, ransac_pca
 from ._sampling import sample_profiles
 from ._trackers import LinkSamplers, TipSamplers, place_tip_samplers
-from ._visibility import window_masks
 from .searches import TEMPLATE_SEARCHES, Edges, Profiles
 from .searches._common import gaussian_derivative, masked_argmax, simple_derivative
 
@@ -118,7 +117,7 @@ def find_tips(ctx: CameraContext, obs: Observation, line_ok: np.ndarray, p_ax: n
     centre = ts.refined + ts.radius_px[:, None] * ts.v0
     edge = centre + along[:, None] * ts.v0
     tip = edge - ts.radius_px[:, None] * ts.v0
-    seen = window_masks(obs.visibility.windows[tl], tip[:, None, :])[:, 0]
+    seen = obs.visibility.rows(tl).window_mask(tip[:, None, :])[:, 0]
     # Past the tip boundary there must be background (TipConfig.beyond).
     beyond = tip[:, None, :] + (ts.radius_px[:, None] * np.asarray(tc.beyond, float))[..., None] * ts.v0[:, None, :]
     seen &= np.all(off_other_links(obs, beyond, tl), axis=-1)

@@ -42,6 +42,10 @@ class Visibility:
             occlusion); its columns index ``covers``.
         covers: (pills,) the occluding pills grown by ``occluder_margin_px``.
         cut: whether windows are cut at all (occlusion on, more than one link).
+        pills: (links, 7) each pill as start (x, y), end (x, y), end radii and the slack (px) by
+            which its simplified outline may lie inside the pill (NaN ends: empty outline).
+        cover_pills: (pills, 7) the same for ``covers``' pills.
+        margin_px: how far ``covers`` are grown (``occluder_margin_px``).
 
     ``grown`` (the grown outlines) and ``windows`` (grown outline less the union of its nearer
     covers) are shapely polygons built on first use (a batch of turns needs the searched links'
@@ -57,6 +61,9 @@ class Visibility:
     nearer: np.ndarray
     covers: np.ndarray
     cut: bool
+    pills: np.ndarray
+    cover_pills: np.ndarray
+    margin_px: float
 
     @functools.cached_property
     def grown(self) -> np.ndarray:
@@ -84,7 +91,99 @@ class Visibility:
         """The visibility of the links ``at`` only (their windows still cut by every cover)."""
         return Visibility(outlines=self.outlines[at], depth=self.depth[at], order=None, visible=self.visible[at],
                           visible_share=self.visible_share[at], pad_px=self.pad_px[at], nearer=self.nearer[at],
-                          covers=self.covers, cut=self.cut)
+                          covers=self.covers, cut=self.cut, pills=self.pills[at], cover_pills=self.cover_pills,
+                          margin_px=self.margin_px)
+
+    def window_mask(self, points: np.ndarray) -> np.ndarray:
+        """(links, ...) True where ``points[i, ...]`` (NaN: False) lies inside link i's window, the
+        same as ``window_masks(self.windows, points)`` without building the windows: inside the
+        grown outline and off the closure of every nearer cover, decided from each pill's
+        distance, and by shapely only within the band where the polygon and the pill differ."""
+        pts = np.asarray(points, float)
+        lead = pts.shape[:-1]
+        flat = pts.reshape(len(pts), -1, 2)
+        finite = np.all(np.isfinite(flat), -1)
+        x = np.where(finite, flat[..., 0], 0.0)
+        y = np.where(finite, flat[..., 1], 0.0)
+        pad = self.pad_px[:, None]
+        lo = np.where(pad > 0, pad * _ARC_COS, 0.0) - self.pills[:, None, 6]
+        own = _decide(pill_distance(x, y, self.pills[:, None, :]), lo, pad * _BUFFER_OVER,
+                      lambda i, k: shapely.contains_xy(_prepared(self.grown)[i], x[i, k], y[i, k]))
+        if self.cut and self.nearer.any():
+            i, j = np.nonzero(self.nearer)  # rows sorted, so each row's pairs are contiguous
+            m = self.margin_px
+            lo = (m * _ARC_COS if m > 0 else 0.0) - self.cover_pills[j, None, 6]
+            covered = _decide(pill_distance(x[i], y[i], self.cover_pills[j, None, :]), lo, m * _BUFFER_OVER,
+                              lambda a, k: shapely.intersects_xy(_prepared(self.covers)[j[a]], x[i[a], k],
+                                                                 y[i[a], k]))
+            first = np.flatnonzero(np.r_[True, i[1:] != i[:-1]])
+            own[i[first]] &= ~np.logical_or.reduceat(covered, first, axis=0)
+        return (own & finite).reshape(lead)
+
+    def inside_outlines(self, points: np.ndarray) -> np.ndarray:
+        """(..., links) True where each point lies inside each outline (``shapely.contains_xy``),
+        decided from the pills' distances and by shapely only near an outline's edge."""
+        pts = np.asarray(points, float)
+        lead = pts.shape[:-1]
+        flat = pts.reshape(-1, 2)
+        finite = np.all(np.isfinite(flat), -1)
+        x = np.where(finite, flat[:, 0], 0.0)[:, None]
+        y = np.where(finite, flat[:, 1], 0.0)[:, None]
+        L = len(self.pills)
+        xs, ys = np.broadcast_to(x, (len(flat), L)), np.broadcast_to(y, (len(flat), L))
+        inside = _decide(pill_distance(x, y, self.pills[None, :, :]), -self.pills[None, :, 6], 0.0,
+                         lambda p, g: shapely.contains_xy(_prepared(self.outlines)[g], xs[p, g], ys[p, g]))
+        return (inside & finite[:, None]).reshape(lead + (L,))
+
+
+# A buffer of quad_segs=4 reaches at least this share of its distance (chords of 22.5-degree arcs).
+_ARC_COS = float(np.cos(np.pi / 8))
+# ... and at most this share past it (GEOS may drop an input vertex within 1 % of the distance).
+_BUFFER_OVER = 1.02
+# Distances within this (px) of a bound are left to shapely (rounding of the distance itself).
+_BAND_EPS = 1e-6
+
+
+def _prepared(geoms: np.ndarray) -> np.ndarray:
+    shapely.prepare(geoms)
+    return geoms
+
+
+def pill_distance(x: np.ndarray, y: np.ndarray, pills: np.ndarray) -> np.ndarray:
+    """Distance of points (x, y) from the edge of pills (negative inside; inf for an empty pill).
+
+    A pill is the convex hull of its two end circles, the union of the circles centred on the
+    segment with the radius interpolated linearly, so the distance is the minimum over t of
+    ``|p - c(t)| - r(t)``, a convex function of t minimised in closed form.
+
+    Args:
+        x, y: point coordinates, broadcasting against ``pills[..., 0]``.
+        pills: (..., 7) start, end, end radii, slack (:attr:`Visibility.pills`).
+    """
+    sx, sy, ex, ey, r0, r1 = (pills[..., c] for c in range(6))
+    dx, dy, dr = ex - sx, ey - sy, r1 - r0
+    wx, wy = x - sx, y - sy
+    L2 = dx * dx + dy * dy
+    with np.errstate(divide="ignore", invalid="ignore"):
+        length = np.sqrt(L2)
+        h = np.abs(wx * dy - wy * dx) / length
+        steep = np.sqrt(np.maximum(L2 - dr * dr, 0.0))
+        t = np.clip((wx * dx + wy * dy) / L2 + dr * h / (length * steep), 0.0, 1.0)
+        cone = np.hypot(wx - t * dx, wy - t * dy) - (r0 + t * dr)
+        # One end circle holding the other (or a point-like segment): the hull is the larger one.
+        ends = np.minimum(np.hypot(wx, wy) - r0, np.hypot(x - ex, y - ey) - r1)
+        d = np.where(steep > 0, cone, ends)
+    return np.where(np.isfinite(d), d, np.inf)
+
+
+def _decide(d: np.ndarray, lo, hi, exact) -> np.ndarray:
+    """``d < lo``: inside; ``d > hi``: outside; in between (within ``_BAND_EPS``) ``exact(*index)``."""
+    inside = d < lo - _BAND_EPS
+    band = (d <= hi + _BAND_EPS) & ~inside
+    if band.any():
+        index = np.nonzero(band)
+        inside[index] = exact(*index)
+    return inside
 
 
 def _grow(outlines: np.ndarray, pad_px: np.ndarray) -> np.ndarray:
@@ -124,6 +223,19 @@ def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.nda
     hulls = shapely.convex_hull(shapely.linestrings(cloud))
     hulls = shapely.simplify(hulls, simplify_px) if simplify_px > 0 else hulls
     return np.where(ok, hulls, shapely.Polygon())
+
+
+def _pills(start_px, end_px, radius_start, radius_end, config: VisibilityConfig) -> np.ndarray:
+    """(links, 7) :attr:`Visibility.pills`: the outline's hull vertices lie on the end circles, so
+    its edges cut into the pill by at most the chord depth ``r (1 - cos(pi / (2 arc_points)))``,
+    and the simplification moves them in by at most ``simplify_px`` more."""
+    s, e = np.asarray(start_px, float), np.asarray(end_px, float)
+    rs, re = np.asarray(radius_start, float), np.asarray(radius_end, float)
+    ok = np.all(np.isfinite(s), -1) & np.all(np.isfinite(e), -1) & np.isfinite(rs) & np.isfinite(re) & (rs > 0) \
+        & (re > 0)
+    chord = np.maximum(rs, re) * (1.0 - np.cos(np.pi / (2 * config.arc_points)))
+    pills = np.concatenate([s, e, rs[:, None], re[:, None], (chord + config.simplify_px)[:, None]], 1)
+    return np.where(ok[:, None], pills, np.nan)
 
 
 def same_chain(link_frame, ancestors: np.ndarray) -> np.ndarray:
@@ -192,8 +304,10 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
         out = ~inside
         seen_area[out] = shapely.area(shapely.intersection(visible[out], frame))
     share = np.where(area > 0, seen_area / np.where(area > 0, area, 1.0), 0.0)
+    pills = _pills(start_px, end_px, radius_start, radius_end, config)
     vis = Visibility(outlines=outlines, depth=mean_depth, order=order, visible=visible,
-                     visible_share=np.clip(share, 0.0, 1.0), pad_px=pad, nearer=nearer, covers=covers, cut=cut)
+                     visible_share=np.clip(share, 0.0, 1.0), pad_px=pad, nearer=nearer, covers=covers, cut=cut,
+                     pills=pills, cover_pills=pills, margin_px=float(config.occluder_margin_px))
     if grown is not None:
         vis.__dict__["grown"] = grown  # already built for the bounds (the cached property's slot)
     return vis
