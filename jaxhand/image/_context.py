@@ -169,8 +169,24 @@ def prepare(images, model: Model, cameras, q, config: ImageConfig | None, name: 
     rig = as_rig(cameras)
     greys = as_images(images, len(rig), [c.size for c in rig])
     q = validate_q(model, q, name=name)
+    return config, rig, greys, q, model_chain(model)
+
+
+_CHAINS: dict[int, tuple[Model, np.ndarray]] = {}
+
+
+def model_chain(model: Model) -> np.ndarray:
+    """:func:`same_chain` of ``model``, kept for the last few models (a tracker calls with one
+    model every frame; the model's ancestor table is rebuilt on each access)."""
+    hit = _CHAINS.get(id(model))
+    if hit is not None and hit[0] is model:
+        return hit[1]
     chain = same_chain(model.link_frame, model.ancestors)
-    return config, rig, greys, q, chain
+    chain.setflags(write=False)
+    if len(_CHAINS) >= 8:
+        _CHAINS.pop(next(iter(_CHAINS)))
+    _CHAINS[id(model)] = (model, chain)
+    return chain
 
 
 def matching_state(state: ImageState | None, n_cameras: int, model: Model, config: ImageConfig) -> ImageState:

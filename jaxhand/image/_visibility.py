@@ -42,8 +42,10 @@ class Visibility:
             occlusion); its columns index ``covers``.
         covers: (pills,) the occluding pills grown by ``occluder_margin_px``.
         cut: whether windows are cut at all (occlusion on, more than one link).
-        pills: (links, 7) each pill as start (x, y), end (x, y), end radii and the slack (px) by
-            which its simplified outline may lie inside the pill (NaN ends: empty outline).
+        pills: (links, 11) each pill as start (x, y), end - start, start radius, end - start
+            radius, 1 / length, 1 / length², the cone's slope term, the slack (px) by which its
+            simplified outline may lie inside the pill, and whether one end circle holds the
+            other (:func:`pill_distance`); an empty outline's pill lies far off the image.
         cover_pills: (pills, 7) the same for ``covers``' pills.
         margin_px: how far ``covers`` are grown (``occluder_margin_px``).
 
@@ -106,13 +108,13 @@ class Visibility:
         x = np.where(finite, flat[..., 0], 0.0)
         y = np.where(finite, flat[..., 1], 0.0)
         pad = self.pad_px[:, None]
-        lo = np.where(pad > 0, pad * _ARC_COS, 0.0) - self.pills[:, None, 6]
+        lo = np.where(pad > 0, pad * _ARC_COS, 0.0) - self.pills[:, None, 9]
         own = _decide(pill_distance(x, y, self.pills[:, None, :]), lo, pad * _BUFFER_OVER,
                       lambda i, k: shapely.contains_xy(_prepared(self.grown)[i], x[i, k], y[i, k]))
         if self.cut and self.nearer.any():
             i, j = np.nonzero(self.nearer)  # rows sorted, so each row's pairs are contiguous
             m = self.margin_px
-            lo = (m * _ARC_COS if m > 0 else 0.0) - self.cover_pills[j, None, 6]
+            lo = (m * _ARC_COS if m > 0 else 0.0) - self.cover_pills[j, None, 9]
             covered = _decide(pill_distance(x[i], y[i], self.cover_pills[j, None, :]), lo, m * _BUFFER_OVER,
                               lambda a, k: shapely.intersects_xy(_prepared(self.covers)[j[a]], x[i[a], k],
                                                                  y[i[a], k]))
@@ -131,7 +133,7 @@ class Visibility:
         y = np.where(finite, flat[:, 1], 0.0)[:, None]
         L = len(self.pills)
         xs, ys = np.broadcast_to(x, (len(flat), L)), np.broadcast_to(y, (len(flat), L))
-        inside = _decide(pill_distance(x, y, self.pills[None, :, :]), -self.pills[None, :, 6], 0.0,
+        inside = _decide(pill_distance(x, y, self.pills[None, :, :]), -self.pills[None, :, 9], 0.0,
                          lambda p, g: shapely.contains_xy(_prepared(self.outlines)[g], xs[p, g], ys[p, g]))
         return (inside & finite[:, None]).reshape(lead + (L,))
 
@@ -150,7 +152,7 @@ def _prepared(geoms: np.ndarray) -> np.ndarray:
 
 
 def pill_distance(x: np.ndarray, y: np.ndarray, pills: np.ndarray) -> np.ndarray:
-    """Distance of points (x, y) from the edge of pills (negative inside; inf for an empty pill).
+    """Distance of points (x, y) from the edge of pills (negative inside; about 1e12 for an empty one).
 
     A pill is the convex hull of its two end circles, the union of the circles centred on the
     segment with the radius interpolated linearly, so the distance is the minimum over t of
@@ -158,22 +160,18 @@ def pill_distance(x: np.ndarray, y: np.ndarray, pills: np.ndarray) -> np.ndarray
 
     Args:
         x, y: point coordinates, broadcasting against ``pills[..., 0]``.
-        pills: (..., 7) start, end, end radii, slack (:attr:`Visibility.pills`).
+        pills: (..., 11) :attr:`Visibility.pills`.
     """
-    sx, sy, ex, ey, r0, r1 = (pills[..., c] for c in range(6))
-    dx, dy, dr = ex - sx, ey - sy, r1 - r0
-    wx, wy = x - sx, y - sy
-    L2 = dx * dx + dy * dy
-    with np.errstate(divide="ignore", invalid="ignore"):
-        length = np.sqrt(L2)
-        h = np.abs(wx * dy - wy * dx) / length
-        steep = np.sqrt(np.maximum(L2 - dr * dr, 0.0))
-        t = np.clip((wx * dx + wy * dy) / L2 + dr * h / (length * steep), 0.0, 1.0)
-        cone = np.hypot(wx - t * dx, wy - t * dy) - (r0 + t * dr)
-        # One end circle holding the other (or a point-like segment): the hull is the larger one.
-        ends = np.minimum(np.hypot(wx, wy) - r0, np.hypot(x - ex, y - ey) - r1)
-        d = np.where(steep > 0, cone, ends)
-    return np.where(np.isfinite(d), d, np.inf)
+    wx, wy = x - pills[..., 0], y - pills[..., 1]
+    dx, dy = pills[..., 2], pills[..., 3]
+    h = np.abs(wx * dy - wy * dx) * pills[..., 6]
+    t = (wx * dx + wy * dy) * pills[..., 7] + pills[..., 8] * h
+    t = np.minimum(np.maximum(t, 0.0, out=t), 1.0, out=t)
+    d = np.hypot(wx - t * dx, wy - t * dy) - (pills[..., 4] + t * pills[..., 5])
+    if pills[..., 10].any():  # one end circle holds the other (or a point-like segment): the larger one
+        ends = np.minimum(np.hypot(wx, wy) - pills[..., 4], np.hypot(wx - dx, wy - dy) - pills[..., 4] - pills[..., 5])
+        d = np.where(pills[..., 10] > 0, ends, d)
+    return d
 
 
 def _decide(d: np.ndarray, lo, hi, exact) -> np.ndarray:
@@ -226,16 +224,28 @@ def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.nda
 
 
 def _pills(start_px, end_px, radius_start, radius_end, config: VisibilityConfig) -> np.ndarray:
-    """(links, 7) :attr:`Visibility.pills`: the outline's hull vertices lie on the end circles, so
+    """(links, 11) :attr:`Visibility.pills`. The outline's hull vertices lie on the end circles, so
     its edges cut into the pill by at most the chord depth ``r (1 - cos(pi / (2 arc_points)))``,
-    and the simplification moves them in by at most ``simplify_px`` more."""
+    and the simplification moves them in by at most ``simplify_px`` more: the slack."""
     s, e = np.asarray(start_px, float), np.asarray(end_px, float)
     rs, re = np.asarray(radius_start, float), np.asarray(radius_end, float)
     ok = np.all(np.isfinite(s), -1) & np.all(np.isfinite(e), -1) & np.isfinite(rs) & np.isfinite(re) & (rs > 0) \
         & (re > 0)
-    chord = np.maximum(rs, re) * (1.0 - np.cos(np.pi / (2 * config.arc_points)))
-    pills = np.concatenate([s, e, rs[:, None], re[:, None], (chord + config.simplify_px)[:, None]], 1)
-    return np.where(ok[:, None], pills, np.nan)
+    far = np.array([1e12, 1e12])  # an empty pill: far from every point
+    s, e = np.where(ok[:, None], s, far), np.where(ok[:, None], e, far)
+    rs, re = np.where(ok, rs, 0.0), np.where(ok, re, 0.0)
+    d, dr = e - s, re - rs
+    L2 = np.sum(d * d, -1)
+    steep2 = L2 - dr * dr
+    ends = ~(steep2 > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_len = np.where(ends, 0.0, 1.0 / np.sqrt(L2))
+        inv_L2 = np.where(ends, 0.0, 1.0 / L2)
+        ratio = np.where(ends, 0.0, dr * inv_len / np.sqrt(steep2))
+    slack = np.where(ok, np.maximum(rs, re) * (1.0 - np.cos(np.pi / (2 * config.arc_points))) + config.simplify_px,
+                     0.0)
+    return np.stack([s[:, 0], s[:, 1], d[:, 0], d[:, 1], rs, dr, inv_len, inv_L2, ratio, slack, ends.astype(float)],
+                    -1)
 
 
 def same_chain(link_frame, ancestors: np.ndarray) -> np.ndarray:

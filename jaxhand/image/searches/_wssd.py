@@ -38,6 +38,8 @@ from ._common import (
     pad_last,
     parabola_vertex,
     per_pixel,
+    row_starts,
+    take_last,
 )
 
 __all__ = ["wssd_valley", "wssd_surface"]
@@ -90,7 +92,7 @@ def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tupl
     w = curve_ok.astype(float)
     xb = np.broadcast_to(x, (L, M))
     R, _ = _normal_equations(xb, w, w)
-    li, mi = np.arange(L)[:, None], np.arange(M)[None, :]
+    flat, base = Wf.reshape(-1), row_starts(Wf.shape)
     # Each link's next line depends on its own displacements only, so a link whose line comes
     # back to an earlier one cycles from there on: its line after ``max_iter`` steps is known at
     # once, and the link leaves the loop (the result is the same as iterating on).
@@ -99,8 +101,8 @@ def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tupl
         if not active.any():
             break
         k = yhat + S
-        up = Wf[li, mi, np.minimum(k + 1, K - 1)]
-        down = Wf[li, mi, np.maximum(k - 1, 0)]
+        up = flat[base + np.minimum(k + 1, K - 1)]
+        down = flat[base + np.maximum(k - 1, 0)]
         g = up - down
         y = yhat - np.sign(g)
         b = w * np.where(curve_ok, y, 0.0)
@@ -137,15 +139,14 @@ def _refine(W: np.ndarray, yhat: np.ndarray, curve_ok: np.ndarray, S: int, subsa
     idx = yhat + S
     near = idx[..., None] + np.arange(-2, 3)  # the five entries around the rounded line
     inside = (near >= 0) & (near < K)
-    vals = np.where(inside, np.take_along_axis(W, np.clip(near, 0, K - 1), -1), np.inf)
+    vals = np.where(inside, take_last(W, np.clip(near, 0, K - 1)), np.inf)
     j = np.argmin(vals, -1)
     k = np.clip(idx + j - 2, 0, K - 1)
-    wmin = np.take_along_axis(W, k[..., None], -1)[..., 0]
+    wmin = take_last(W, k)
     y = (k - S).astype(float)
     if subsample:
         km, kp = np.clip(k - 1, 0, K - 1), np.clip(k + 1, 0, K - 1)
-        wm = np.take_along_axis(W, km[..., None], -1)[..., 0]
-        wp = np.take_along_axis(W, kp[..., None], -1)[..., 0]
+        wm, wp = take_last(W, km), take_last(W, kp)
         inner = (k > 0) & (k < K - 1) & np.isfinite(wm) & np.isfinite(wp) & np.isfinite(wmin)
         y = y + np.where(inner, parabola_vertex(np.where(inner, wm, 0.0), np.where(inner, wmin, 0.0),
                                                 np.where(inner, wp, 0.0)), 0.0)
@@ -167,7 +168,7 @@ def _snap_to_edges(profiles: Profiles, pos: np.ndarray, window: np.ndarray, conf
     for side, inward in ((0, 1.0), (1, -1.0)):
         p = pos[..., side]
         inside = np.clip(np.rint(p + inward), 0, n - 1).astype(int)
-        seen = np.take_along_axis(window, inside[..., None], -1)[..., 0] & clear[..., side]
+        seen = take_last(window, inside) & clear[..., side]
         score = (config.sign if side == 0 else -config.sign) * d
         allowed = d_ok & (np.abs(at - p[..., None]) <= config.snap * profiles.radius)
         k, val, off = masked_argmax(score, allowed, config.subsample)
