@@ -11,6 +11,7 @@ from ._context import CameraContext, Observation, against_background, off_other_
 from ._lines import axial_line, line_params, offset_towards, ransac_pca
 from ._sampling import sample_profiles
 from ._trackers import LinkSamplers, TipSamplers, place_tip_samplers
+from ._xy import dot_xy, finite_last, finite_xy
 from .searches import TEMPLATE_SEARCHES, Edges, Profiles
 from .searches._common import gaussian_derivative, masked_argmax, simple_derivative
 
@@ -21,7 +22,7 @@ def edges_to_px(samplers: LinkSamplers, edges: Edges, centre: float) -> tuple[np
     """(links, samplers, 2, 2) boundary points in pixels (NaN where not found) and which were found."""
     off = (edges.pos - centre) * samplers.spacing_px[:, None, None]  # (links, samplers, 2), px along the normal
     pts = samplers.centres[:, :, None, :] + off[..., None] * samplers.normal[:, None, None, :]
-    ok = edges.valid & samplers.ok[:, None, None] & np.all(np.isfinite(pts), -1)
+    ok = edges.valid & samplers.ok[:, None, None] & finite_xy(pts)
     return np.where(ok[..., None], pts, np.nan), ok
 
 
@@ -69,10 +70,10 @@ def fit_links(obs: Observation, edge_px: np.ndarray, edge_ok: np.ndarray, config
     p_one = offset_towards(p_one, v_one, mid, s.radius_px)
     p_ax = np.where(single[:, None], p_one, p_ax)
     v_ax = np.where(single[:, None], v_one, v_ax)
-    v_ax = np.where((np.sum(v_ax * s.direction, -1) < 0)[:, None], -v_ax, v_ax)  # point from start to end
+    v_ax = np.where((dot_xy(v_ax, s.direction) < 0)[:, None], -v_ax, v_ax)  # point from start to end
     lines = line_params(p_ax, v_ax)
     share = obs.visibility.visible_share
-    valid = s.ok & (both | single) & (share >= lc.min_visible) & np.all(np.isfinite(lines), -1)
+    valid = s.ok & (both | single) & (share >= lc.min_visible) & finite_last(lines)
     weight = (share if lc.weight_by_visibility else np.ones_like(share)) * np.where(single, lc.single_edge_weight,
                                                                                     1.0)
     lines = np.where(valid[:, None], lines, np.array([1.0, 0.0, 0.0]))
@@ -122,7 +123,7 @@ def find_tips(ctx: CameraContext, obs: Observation, line_ok: np.ndarray, p_ax: n
     beyond = tip[:, None, :] + (ts.radius_px[:, None] * np.asarray(tc.beyond, float))[..., None] * ts.v0[:, None, :]
     seen &= np.all(off_other_links(obs, beyond, tl), axis=-1)
     valid = (s.ok[tl] & found & (strength >= tc.min_strength) & (strength > 0) & seen
-             & (obs.visibility.visible_share[tl] >= config.lines.min_visible) & np.all(np.isfinite(tip), -1)
+             & (obs.visibility.visible_share[tl] >= config.lines.min_visible) & finite_xy(tip)
              & (line_ok[tl] | (not tc.need_line)))
     return TipFit(tips=np.where(valid[:, None], tip, 0.0), valid=valid, ts=ts,
                   edge=np.where(valid[:, None], edge, np.nan), strength=np.where(valid, strength, 0.0))

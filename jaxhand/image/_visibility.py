@@ -21,6 +21,7 @@ import numpy as np
 import shapely
 
 from ._config import VisibilityConfig
+from ._xy import dot_xy, finite_xy
 
 __all__ = ["Visibility", "pill_outlines", "same_chain", "compute_visibility", "window_masks", "convex_edges",
            "inside_polygons"]
@@ -104,7 +105,7 @@ class Visibility:
         pts = np.asarray(points, float)
         lead = pts.shape[:-1]
         flat = pts.reshape(len(pts), -1, 2)
-        finite = np.all(np.isfinite(flat), -1)
+        finite = finite_xy(flat)
         x = np.where(finite, flat[..., 0], 0.0)
         y = np.where(finite, flat[..., 1], 0.0)
         pad = self.pad_px[:, None]
@@ -118,24 +119,9 @@ class Visibility:
             covered = _decide(pill_distance(x[i], y[i], self.cover_pills[j, None, :]), lo, m * _BUFFER_OVER,
                               lambda a, k: shapely.intersects_xy(_prepared(self.covers)[j[a]], x[i[a], k],
                                                                  y[i[a], k]))
-            first = np.flatnonzero(np.r_[True, i[1:] != i[:-1]])
+            first = np.flatnonzero(np.concatenate([[True], i[1:] != i[:-1]]))
             own[i[first]] &= ~np.logical_or.reduceat(covered, first, axis=0)
         return (own & finite).reshape(lead)
-
-    def inside_outlines(self, points: np.ndarray) -> np.ndarray:
-        """(..., links) True where each point lies inside each outline (``shapely.contains_xy``),
-        decided from the pills' distances and by shapely only near an outline's edge."""
-        pts = np.asarray(points, float)
-        lead = pts.shape[:-1]
-        flat = pts.reshape(-1, 2)
-        finite = np.all(np.isfinite(flat), -1)
-        x = np.where(finite, flat[:, 0], 0.0)[:, None]
-        y = np.where(finite, flat[:, 1], 0.0)[:, None]
-        L = len(self.pills)
-        xs, ys = np.broadcast_to(x, (len(flat), L)), np.broadcast_to(y, (len(flat), L))
-        inside = _decide(pill_distance(x, y, self.pills[None, :, :]), -self.pills[None, :, 9], 0.0,
-                         lambda p, g: shapely.contains_xy(_prepared(self.outlines)[g], xs[p, g], ys[p, g]))
-        return (inside & finite[:, None]).reshape(lead + (L,))
 
 
 # A buffer of quad_segs=4 reaches at least this share of its distance (chords of 22.5-degree arcs).
@@ -212,7 +198,7 @@ def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.nda
     e = np.asarray(end_px, float)
     rs = np.asarray(radius_start, float)
     re = np.asarray(radius_end, float)
-    ok = (np.all(np.isfinite(s), -1) & np.all(np.isfinite(e), -1) & np.isfinite(rs) & np.isfinite(re)
+    ok = (finite_xy(s) & finite_xy(e) & np.isfinite(rs) & np.isfinite(re)
           & (rs > 0) & (re > 0))
     cloud = np.concatenate([s[:, None] + rs[:, None, None] * circle, e[:, None] + re[:, None, None] * circle], 1)
     cloud = np.where(ok[:, None, None], cloud, 0.0)
@@ -229,13 +215,13 @@ def _pills(start_px, end_px, radius_start, radius_end, config: VisibilityConfig)
     and the simplification moves them in by at most ``simplify_px`` more: the slack."""
     s, e = np.asarray(start_px, float), np.asarray(end_px, float)
     rs, re = np.asarray(radius_start, float), np.asarray(radius_end, float)
-    ok = np.all(np.isfinite(s), -1) & np.all(np.isfinite(e), -1) & np.isfinite(rs) & np.isfinite(re) & (rs > 0) \
+    ok = finite_xy(s) & finite_xy(e) & np.isfinite(rs) & np.isfinite(re) & (rs > 0) \
         & (re > 0)
     far = np.array([1e12, 1e12])  # an empty pill: far from every point
     s, e = np.where(ok[:, None], s, far), np.where(ok[:, None], e, far)
     rs, re = np.where(ok, rs, 0.0), np.where(ok, re, 0.0)
     d, dr = e - s, re - rs
-    L2 = np.sum(d * d, -1)
+    L2 = dot_xy(d, d)
     steep2 = L2 - dr * dr
     ends = ~(steep2 > 0)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -336,7 +322,7 @@ def window_masks(polygons: np.ndarray, points: np.ndarray) -> np.ndarray:
     pts = np.asarray(points, float)
     geoms = np.asarray(polygons, dtype=object).reshape((-1,) + (1,) * (pts.ndim - 2))
     shapely.prepare(geoms)
-    finite = np.all(np.isfinite(pts), -1)
+    finite = finite_xy(pts)
     x = np.where(finite, pts[..., 0], 0.0)
     y = np.where(finite, pts[..., 1], 0.0)
     return shapely.contains_xy(geoms, x, y) & finite
@@ -407,7 +393,7 @@ def inside_polygons(polygons: np.ndarray, points: np.ndarray, *, tol: float = 1e
     pts = np.asarray(points, float)
     lead = pts.shape[:-1]
     flat = pts.reshape(-1, 2)
-    finite = np.all(np.isfinite(flat), -1)
+    finite = finite_xy(flat)
     x = np.where(finite, flat[:, 0], 0.0)
     y = np.where(finite, flat[:, 1], 0.0)
     edges = convex_edges(geoms) if edges is False else edges

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from .._config import SearchConfig
-from .._regression import _normal_equations, plls, solve_2x2
+from .._regression import _SINGULAR, _normal_equations, plls
 from ._common import (
     Edges,
     Profiles,
@@ -92,6 +92,11 @@ def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tupl
     w = curve_ok.astype(float)
     xb = np.broadcast_to(x, (L, M))
     R, _ = _normal_equations(xb, w, w)
+    # solve_2x2's arithmetic with its matrix-only terms taken out of the loop (the same bits).
+    det = R[..., 0, 0] * R[..., 1, 1] - R[..., 0, 1] * R[..., 1, 0]
+    ok = np.abs(det) > _SINGULAR * np.maximum((np.abs(R[..., 0, 0]) + np.abs(R[..., 1, 1])) ** 2, 1e-300)
+    safe = np.where(ok, det, 1.0)
+    r00, r01, r10, r11 = R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1]
     flat, base = Wf.reshape(-1), row_starts(Wf.shape)
     # Each link's next line depends on its own displacements only, so a link whose line comes
     # back to an earlier one cycles from there on: its line after ``max_iter`` steps is known at
@@ -106,8 +111,10 @@ def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tupl
         g = up - down
         y = yhat - np.sign(g)
         b = w * np.where(curve_ok, y, 0.0)
-        c, ok = solve_2x2(R, np.stack([b.sum(-1), (b * xb).sum(-1)], -1))
-        new = np.clip(np.rint(c[:, 0, None] + c[:, 1, None] * x), -S, S).astype(int)
+        b0, b1 = b.sum(-1), (b * xb).sum(-1)
+        c0 = np.where(ok, (r11 * b0 - r01 * b1) / safe, 0.0)
+        c1 = np.where(ok, (r00 * b1 - r10 * b0) / safe, 0.0)
+        new = np.minimum(np.maximum(np.rint(c0[:, None] + c1[:, None] * x), -S), S).astype(int)
         step = active & ok
         changed = np.any((new != yhat) & curve_ok, axis=-1)
         yhat = np.where(step[:, None], new, yhat)
