@@ -20,7 +20,7 @@ import dataclasses
 import numpy as np
 
 from ._config import SamplerConfig, TipConfig
-from ._xy import dot_xy, finite_xy, norm_xy
+from ._xy import dot_xy, finite_xy, nan_to_num, norm_xy
 
 __all__ = ["LinkSamplers", "TipSamplers", "place_link_samplers", "refine_tip", "place_tip_samplers"]
 
@@ -80,7 +80,7 @@ def place_link_samplers(start_px: np.ndarray, end_px: np.ndarray, radius_px: np.
     spacing = np.where(ok, 2 * config.scope * np.where(ok, radius, 0.0) / (config.points - 1), 0.0)
     j = np.arange(config.points) - config.centre
     pts = centres[:, :, None, :] + (j[None, None, :, None] * spacing[:, None, None, None]) * n[:, None, None, :]
-    return LinkSamplers(direction=u, normal=n, radius_px=np.where(ok, radius, 0.0), length_px=np.nan_to_num(length),
+    return LinkSamplers(direction=u, normal=n, radius_px=np.where(ok, radius, 0.0), length_px=nan_to_num(length),
                         ok=ok, centres=centres, spacing_px=spacing, points=pts)
 
 

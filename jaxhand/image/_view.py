@@ -11,7 +11,7 @@ from ._context import CameraContext, Observation, against_background, off_other_
 from ._lines import axial_line, line_params, offset_towards, ransac_pca
 from ._sampling import sample_profiles
 from ._trackers import LinkSamplers, TipSamplers, place_tip_samplers
-from ._xy import dot_xy, finite_last, finite_xy
+from ._xy import dot_xy, finite_last, finite_xy, nan_to_num
 from .searches import TEMPLATE_SEARCHES, Edges, Profiles
 from .searches._common import gaussian_derivative, masked_argmax, simple_derivative
 
@@ -57,7 +57,7 @@ def fit_links(obs: Observation, edge_px: np.ndarray, edge_ok: np.ndarray, config
     offset by the radius towards the predicted axis."""
     lc = config.lines
     s = obs.samplers
-    pts = np.swapaxes(np.nan_to_num(edge_px), 1, 2)  # (links, 2, samplers, 2)
+    pts = np.swapaxes(nan_to_num(edge_px), 1, 2)  # (links, 2, samplers, 2)
     ok_pts = np.swapaxes(edge_ok, 1, 2)
     p, v, ok, inliers = ransac_pca(pts, ok_pts, lc.tau_px, lc.min_inliers)
     both = ok[:, 0] & ok[:, 1]
@@ -66,7 +66,7 @@ def fit_links(obs: Observation, edge_px: np.ndarray, edge_ok: np.ndarray, config
     k = np.where(ok[:, 0], 0, 1)
     p_one = np.take_along_axis(p, k[:, None, None], 1)[:, 0]
     v_one = np.take_along_axis(v, k[:, None, None], 1)[:, 0]
-    mid = 0.5 * (np.nan_to_num(obs.start) + np.nan_to_num(obs.end))
+    mid = 0.5 * (nan_to_num(obs.start) + nan_to_num(obs.end))
     p_one = offset_towards(p_one, v_one, mid, s.radius_px)
     p_ax = np.where(single[:, None], p_one, p_ax)
     v_ax = np.where(single[:, None], v_one, v_ax)
@@ -102,9 +102,9 @@ def find_tips(ctx: CameraContext, obs: Observation, line_ok: np.ndarray, p_ax: n
     s = obs.samplers
     tl = np.asarray(ctx.model.tip_links, int)
     # The terminal axial line when it was measured, else the predicted link axis.
-    p = np.where(line_ok[tl, None], p_ax[tl], np.nan_to_num(obs.start[tl]))
+    p = np.where(line_ok[tl, None], p_ax[tl], nan_to_num(obs.start[tl]))
     v = np.where(line_ok[tl, None], v_ax[tl], s.direction[tl])
-    ts = place_tip_samplers(np.nan_to_num(obs.tips), p, v, s.radius_px[tl], tc)
+    ts = place_tip_samplers(nan_to_num(obs.tips), p, v, s.radius_px[tl], tc)
     values, usable = sample_profiles(ctx.grey, ts.points, config.samplers.interpolation)
     if tc.sigma > 0:
         d, d_ok, pos = gaussian_derivative(values, usable, tc.sigma)

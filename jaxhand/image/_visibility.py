@@ -21,7 +21,7 @@ import numpy as np
 import shapely
 
 from ._config import VisibilityConfig
-from ._xy import dot_xy, finite_xy
+from ._xy import dot_xy, finite_xy, nan_to_num
 
 __all__ = ["Visibility", "pill_outlines", "same_chain", "compute_visibility", "window_masks", "convex_edges",
            "inside_polygons"]
@@ -257,7 +257,7 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
     outlines = pill_outlines(start_px, end_px, radius_start, radius_end, config.arc_points, config.simplify_px)
     mean_depth = np.nan_to_num(np.asarray(depth, float).mean(-1), nan=np.inf, posinf=np.inf, neginf=np.inf)
     order = np.argsort(-mean_depth, kind="stable")
-    radius = 0.5 * (np.nan_to_num(radius_start) + np.nan_to_num(radius_end))
+    radius = 0.5 * (nan_to_num(radius_start) + nan_to_num(radius_end))
     pad = config.window_pad * radius
     L = len(outlines)
     empty = shapely.is_empty(outlines)
@@ -270,8 +270,8 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
         covers = shapely.buffer(outlines, config.occluder_margin_px, quad_segs=4) if config.occluder_margin_px > 0 \
             else outlines
         # Only nearer pills of other chains whose bounding boxes meet this one's can cut it.
-        b = np.nan_to_num(shapely.bounds(grown), nan=0.0)
-        c = np.nan_to_num(shapely.bounds(covers), nan=0.0)
+        b = nan_to_num(shapely.bounds(grown))
+        c = nan_to_num(shapely.bounds(covers))
         meet = ((c[None, :, 0] <= b[:, None, 2]) & (c[None, :, 2] >= b[:, None, 0])
                 & (c[None, :, 1] <= b[:, None, 3]) & (c[None, :, 3] >= b[:, None, 1]))
         nearer = (mean_depth[None, :] < mean_depth[:, None]) & ~np.asarray(chain, bool) & ~empty[None, :] & meet

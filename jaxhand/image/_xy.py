@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["finite_xy", "finite_last", "dot_xy", "norm_xy"]
+__all__ = ["finite_xy", "finite_last", "dot_xy", "norm_xy", "clip_index", "nan_to_num"]
 
 
 def finite_xy(p: np.ndarray) -> np.ndarray:
@@ -33,3 +33,14 @@ def dot_xy(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def norm_xy(a: np.ndarray) -> np.ndarray:
     """``np.linalg.norm(a, axis=-1)`` for real (..., 2) ``a``."""
     return np.sqrt(a[..., 0] * a[..., 0] + a[..., 1] * a[..., 1])
+
+
+def clip_index(k: np.ndarray, lo: int, hi: int) -> np.ndarray:
+    """``np.clip`` of integer indices (without its per-call dtype checks)."""
+    return np.minimum(np.maximum(k, lo), hi)
+
+
+def nan_to_num(x) -> np.ndarray:
+    """``np.nan_to_num(x)`` (a copy), skipping its per-call type inspection when every entry is finite."""
+    x = np.asarray(x)
+    return x.copy() if np.isfinite(x).all() else np.nan_to_num(x)

@@ -10,9 +10,12 @@ Boundary 0 lies towards smaller sample indices, boundary 1 towards larger ones.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+
+from .._xy import clip_index
 
 __all__ = ["Profiles", "Edges", "parabola_vertex", "simple_derivative", "gaussian_derivative",
            "derivative_kernel", "masked_argmax", "width_template", "correlate_shifts", "edges_about_centres",
@@ -157,7 +160,7 @@ def gaussian_derivative(values: np.ndarray, usable: np.ndarray, sigma: float
 def row_starts(shape: tuple[int, ...]) -> np.ndarray:
     """(shape[:-1]) the flat index of each row's first entry in a C-ordered array of ``shape``."""
     n = shape[-1]
-    return np.arange(0, int(np.prod(shape)), n).reshape(shape[:-1])
+    return np.arange(0, math.prod(shape), n).reshape(shape[:-1])
 
 
 def take_last(a: np.ndarray, k: np.ndarray) -> np.ndarray:
@@ -183,7 +186,7 @@ def masked_argmax(score: np.ndarray, allowed: np.ndarray, subsample: bool) -> tu
     off = np.zeros(k.shape)
     if subsample:
         n = score.shape[-1]
-        km, kp = np.clip(k - 1, 0, n - 1), np.clip(k + 1, 0, n - 1)
+        km, kp = clip_index(k - 1, 0, n - 1), clip_index(k + 1, 0, n - 1)
         sm, sp = take_last(s, km), take_last(s, kp)
         inner = (k > 0) & (k < n - 1) & np.isfinite(sm) & np.isfinite(sp) & np.isfinite(val)
         off = np.where(inner, parabola_vertex(np.where(inner, sm, 0.0), np.where(inner, val, 0.0),
@@ -226,7 +229,7 @@ def sample_at(curves: np.ndarray, pos: np.ndarray) -> np.ndarray:
     """Linear interpolation of each curve (last axis) at a fractional index per curve (clipped)."""
     n = curves.shape[-1]
     p = np.clip(pos, 0, n - 1)
-    k0 = np.clip(np.floor(p).astype(int), 0, n - 2) if n > 1 else np.zeros(p.shape, int)
+    k0 = clip_index(np.floor(p).astype(int), 0, n - 2) if n > 1 else np.zeros(p.shape, int)
     f = p - k0
     a = take_last(curves, k0)
     b = take_last(curves, np.minimum(k0 + 1, n - 1))

@@ -29,6 +29,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from .._config import SearchConfig
 from .._regression import _SINGULAR, _normal_equations, plls
+from .._xy import clip_index
 from ._common import (
     Edges,
     Profiles,
@@ -64,9 +65,10 @@ def wssd_surface(values: np.ndarray, usable: np.ndarray, templates: np.ndarray, 
     S = int(max_shift)
     img = sliding_window_view(pad_last(values, S), values.shape[-1], axis=-1)  # (..., 2S+1, n): I(j + s)
     ok = sliding_window_view(pad_last(usable, S), values.shape[-1], axis=-1) & window[..., None, :]
-    diff = np.where(ok, img - templates[..., None, :], 0.0)
-    counts = ok.sum(-1)
-    W = np.where(counts > 0, (diff * diff).sum(-1) / np.maximum(counts, 1), np.inf)
+    diff = np.subtract(img, templates[..., None, :])
+    np.copyto(diff, 0.0, where=~ok)  # in place: the surface is the largest array of a frame
+    counts = np.count_nonzero(ok, axis=-1)
+    W = np.where(counts > 0, np.square(diff, out=diff).sum(-1) / np.maximum(counts, 1), np.inf)
     return W, counts, np.arange(-S, S + 1)
 
 
@@ -146,13 +148,13 @@ def _refine(W: np.ndarray, yhat: np.ndarray, curve_ok: np.ndarray, S: int, subsa
     idx = yhat + S
     near = idx[..., None] + np.arange(-2, 3)  # the five entries around the rounded line
     inside = (near >= 0) & (near < K)
-    vals = np.where(inside, take_last(W, np.clip(near, 0, K - 1)), np.inf)
+    vals = np.where(inside, take_last(W, clip_index(near, 0, K - 1)), np.inf)
     j = np.argmin(vals, -1)
-    k = np.clip(idx + j - 2, 0, K - 1)
+    k = clip_index(idx + j - 2, 0, K - 1)
     wmin = take_last(W, k)
     y = (k - S).astype(float)
     if subsample:
-        km, kp = np.clip(k - 1, 0, K - 1), np.clip(k + 1, 0, K - 1)
+        km, kp = clip_index(k - 1, 0, K - 1), clip_index(k + 1, 0, K - 1)
         wm, wp = take_last(W, km), take_last(W, kp)
         inner = (k > 0) & (k < K - 1) & np.isfinite(wm) & np.isfinite(wp) & np.isfinite(wmin)
         y = y + np.where(inner, parabola_vertex(np.where(inner, wm, 0.0), np.where(inner, wmin, 0.0),
@@ -174,7 +176,7 @@ def _snap_to_edges(profiles: Profiles, pos: np.ndarray, window: np.ndarray, conf
     out = pos.copy()
     for side, inward in ((0, 1.0), (1, -1.0)):
         p = pos[..., side]
-        inside = np.clip(np.rint(p + inward), 0, n - 1).astype(int)
+        inside = clip_index(np.rint(p + inward).astype(int), 0, n - 1)
         seen = take_last(window, inside) & clear[..., side]
         score = (config.sign if side == 0 else -config.sign) * d
         allowed = d_ok & (np.abs(at - p[..., None]) <= config.snap * profiles.radius)
