@@ -20,6 +20,7 @@ from ._sampling import as_grey, sample_profiles
 from ._state import ImageState
 from ._trackers import LinkSamplers, place_link_samplers
 from ._visibility import Visibility, compute_visibility, inside_polygons, same_chain
+from ._xy import all_last
 
 __all__ = ["CameraContext", "Observation", "observe", "end_radii", "off_other_links", "against_background",
            "as_images", "prepare", "matching_state", "layout"]
@@ -133,7 +134,7 @@ def against_background(obs: Observation, reach: Sequence[float]) -> np.ndarray:
     off = (s.radius_px[:, None] * at)[:, None, :, None] * s.normal[:, None, None, :]
     clear = off_other_links(obs, s.centres[:, :, None, :] + off)  # (links, samplers, 2 * reaches)
     n = len(reach)
-    return np.stack([clear[..., :n].all(-1), clear[..., n:].all(-1)], -1)
+    return np.stack([all_last(clear[..., :n]), all_last(clear[..., n:])], -1)
 
 
 def as_images(images, n_cameras: int, sizes: Sequence[tuple[int, int]]) -> list[np.ndarray]:

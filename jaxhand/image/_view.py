@@ -11,7 +11,7 @@ from ._context import CameraContext, Observation, against_background, off_other_
 from ._lines import axial_line, line_params, offset_towards, ransac_pca
 from ._sampling import sample_profiles
 from ._trackers import LinkSamplers, TipSamplers, place_tip_samplers
-from ._xy import dot_xy, finite_last, finite_xy, nan_to_num
+from ._xy import all_last, dot_xy, finite_last, finite_xy, nan_to_num
 from .searches import TEMPLATE_SEARCHES, Edges, Profiles
 from .searches._common import gaussian_derivative, masked_argmax, simple_derivative
 
@@ -121,7 +121,7 @@ def find_tips(ctx: CameraContext, obs: Observation, line_ok: np.ndarray, p_ax: n
     seen = obs.visibility.rows(tl).window_mask(tip[:, None, :])[:, 0]
     # Past the tip boundary there must be background (TipConfig.beyond).
     beyond = tip[:, None, :] + (ts.radius_px[:, None] * np.asarray(tc.beyond, float))[..., None] * ts.v0[:, None, :]
-    seen &= np.all(off_other_links(obs, beyond, tl), axis=-1)
+    seen &= all_last(off_other_links(obs, beyond, tl))
     valid = (s.ok[tl] & found & (strength >= tc.min_strength) & (strength > 0) & seen
              & (obs.visibility.visible_share[tl] >= config.lines.min_visible) & finite_xy(tip)
              & (line_ok[tl] | (not tc.need_line)))

@@ -275,17 +275,20 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
         meet = ((c[None, :, 0] <= b[:, None, 2]) & (c[None, :, 2] >= b[:, None, 0])
                 & (c[None, :, 1] <= b[:, None, 3]) & (c[None, :, 3] >= b[:, None, 1]))
         nearer = (mean_depth[None, :] < mean_depth[:, None]) & ~np.asarray(chain, bool) & ~empty[None, :] & meet
-        none = shapely.Polygon()
         # Links with the same occluders (the phalanges of one finger behind another, often) share
-        # one union of them.
+        # one union of them; a link without occluders keeps its outline (what the difference with
+        # an empty polygon returns).
+        cut_rows = np.flatnonzero(nearer.any(1))
         unions: dict[bytes, object] = {}
-        occl = np.empty(L, dtype=object)
-        for i in range(L):
+        occl = np.empty(len(cut_rows), dtype=object)
+        for n, i in enumerate(cut_rows):
             key = nearer[i].tobytes()
             if key not in unions:
-                unions[key] = shapely.union_all(outlines[nearer[i]]) if nearer[i].any() else none
-            occl[i] = unions[key]
-        visible = shapely.difference(outlines, occl)
+                unions[key] = shapely.union_all(outlines[nearer[i]])
+            occl[n] = unions[key]
+        visible = outlines.copy()
+        if len(cut_rows):
+            visible[cut_rows] = shapely.difference(outlines[cut_rows], occl)
     else:
         visible = outlines.copy()
     w, h = image_size

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["finite_xy", "finite_last", "dot_xy", "norm_xy", "clip_index", "nan_to_num"]
+__all__ = ["finite_xy", "finite_last", "dot_xy", "norm_xy", "clip_index", "nan_to_num", "all_last"]
 
 
 def finite_xy(p: np.ndarray) -> np.ndarray:
@@ -44,3 +44,11 @@ def nan_to_num(x) -> np.ndarray:
     """``np.nan_to_num(x)`` (a copy), skipping its per-call type inspection when every entry is finite."""
     x = np.asarray(x)
     return x.copy() if np.isfinite(x).all() else np.nan_to_num(x)
+
+
+def all_last(b: np.ndarray) -> np.ndarray:
+    """``np.all(b, -1)`` for a short last axis of booleans."""
+    out = b[..., 0].copy()
+    for k in range(1, b.shape[-1]):
+        out &= b[..., k]
+    return out
