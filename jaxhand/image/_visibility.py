@@ -7,9 +7,10 @@ every pill is cut where nearer pills cover it (Boolean difference, shapely), whi
 truncated polygons of fig. 4.17. Phalanges of one finger (links on one kinematic chain) never cut
 each other, as in the thesis. The window function of a profile is 1 where its samples fall inside
 its link's window polygon: the link's outline grown by ``window_pad`` radii (a strip of
-background), less the nearer pills grown by ``occluder_margin_px``. All geometry calls are
-shapely 2's vectorised array functions; the only Python loop runs over links to merge each one's
-occluders.
+background), less the nearer pills grown by ``occluder_margin_px``. The polygons (for the visible
+shares and overlays) come from shapely 2's vectorised array functions; which samples lie inside a
+window is decided from each point's distance to the pills themselves, which bound the polygons
+from both sides, and by shapely only for the few points between those bounds.
 """
 
 from __future__ import annotations
