@@ -49,7 +49,8 @@ def ransac_pca(points: np.ndarray, valid: np.ndarray, tau_px: float, min_inliers
         zeros = np.zeros(pts.shape[:-2] + (2,))
         return zeros, zeros + [1.0, 0.0], np.zeros(pts.shape[:-2], bool), np.zeros(valid.shape, bool)
     best = np.argmax(counts, -1)
-    inliers = np.take_along_axis(inl, best[..., None, None], -2)[..., 0, :]
+    P = inl.shape[-2]
+    inliers = inl.reshape(-1, P, m)[np.arange(best.size), best.reshape(-1)].reshape(valid.shape)  # the best pair's
     n_in = inliers.sum(-1)
     ok = n_in >= max(2, min_inliers)
     inliers = inliers & ok[..., None]

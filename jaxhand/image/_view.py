@@ -64,8 +64,8 @@ def fit_links(obs: Observation, edge_px: np.ndarray, edge_ok: np.ndarray, config
     p_ax, v_ax = axial_line(p[:, 0], v[:, 0], p[:, 1], v[:, 1], lc.det_eps)
     single = lc.single_edge & (ok[:, 0] ^ ok[:, 1])
     k = np.where(ok[:, 0], 0, 1)
-    p_one = np.take_along_axis(p, k[:, None, None], 1)[:, 0]
-    v_one = np.take_along_axis(v, k[:, None, None], 1)[:, 0]
+    rows = np.arange(len(k))
+    p_one, v_one = p[rows, k], v[rows, k]
     mid = 0.5 * (nan_to_num(obs.start) + nan_to_num(obs.end))
     p_one = offset_towards(p_one, v_one, mid, s.radius_px)
     p_ax = np.where(single[:, None], p_one, p_ax)
