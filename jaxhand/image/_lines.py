@@ -42,7 +42,9 @@ def ransac_pca(points: np.ndarray, valid: np.ndarray, tau_px: float, min_inliers
     pair_ok = valid[..., i] & valid[..., j] & (norm > 1e-9)
     nrm = np.stack([-d[..., 1], d[..., 0]], -1) / np.where(pair_ok, norm, 1.0)[..., None]
     # distance of every point to every pair's line: (..., P, m)
-    dist = np.abs(np.einsum("...pk,...mk->...pm", nrm, pts) - dot_xy(nrm, pts[..., i, :])[..., None])
+    # (the same products and sum as einsum("...pk,...mk->...pm"), without its per-call parsing)
+    proj = nrm[..., :, None, 0] * pts[..., None, :, 0] + nrm[..., :, None, 1] * pts[..., None, :, 1]
+    dist = np.abs(proj - dot_xy(nrm, pts[..., i, :])[..., None])
     inl = (dist < tau_px) & valid[..., None, :] & pair_ok[..., None]
     counts = inl.sum(-1) if m > 1 else np.zeros(pts.shape[:-2] + (0,), int)
     if counts.shape[-1] == 0:

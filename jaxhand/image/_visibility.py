@@ -42,7 +42,8 @@ class Visibility:
         pad_px: (links,) how far each outline is grown for its window (``window_pad`` radii).
         nearer: (links, pills) the pills that cut each link's window (all False: none, or no
             occlusion); its columns index ``covers``.
-        covers: (pills,) the occluding pills grown by ``occluder_margin_px``.
+        covers: (pills,) the occluding pills grown by ``occluder_margin_px`` (built only for the
+            pills that can cut a window, None for the others, which no row of ``nearer`` names).
         cut: whether windows are cut at all (occlusion on, more than one link).
         pills: (links, 11) each pill as start (x, y), end - start, start radius, end - start
             radius, 1 / length, 1 / length², the cone's slope term, the slack (px) by which its
@@ -268,14 +269,23 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
     grown = None
     if cut:
         grown = _grow(outlines, pad)
-        covers = shapely.buffer(outlines, config.occluder_margin_px, quad_segs=4) if config.occluder_margin_px > 0 \
-            else outlines
-        # Only nearer pills of other chains whose bounding boxes meet this one's can cut it.
         b = nan_to_num(shapely.bounds(grown))
-        c = nan_to_num(shapely.bounds(covers))
-        meet = ((c[None, :, 0] <= b[:, None, 2]) & (c[None, :, 2] >= b[:, None, 0])
-                & (c[None, :, 1] <= b[:, None, 3]) & (c[None, :, 3] >= b[:, None, 1]))
-        nearer = (mean_depth[None, :] < mean_depth[:, None]) & ~np.asarray(chain, bool) & ~empty[None, :] & meet
+        candidate = (mean_depth[None, :] < mean_depth[:, None]) & ~np.asarray(chain, bool) & ~empty[None, :]
+        m = config.occluder_margin_px
+        if m > 0:
+            # A cover lies within its outline's box grown by the margin: only the pills whose grown
+            # box meets a candidate's box are buffered (the others cut no window).
+            o = nan_to_num(shapely.bounds(outlines)) + np.array([-1.0, -1.0, 1.0, 1.0]) * (m * _BUFFER_OVER + 1e-9)
+            candidate &= _boxes_meet(b, o)
+            used = np.flatnonzero(candidate.any(0))
+            covers = np.full(L, None, dtype=object)
+            covers[used] = shapely.buffer(outlines[used], m, quad_segs=4)
+            c = np.zeros((L, 4))
+            c[used] = nan_to_num(shapely.bounds(covers[used]))
+        else:
+            c = nan_to_num(shapely.bounds(covers))
+        # Only nearer pills of other chains whose bounding boxes meet this one's can cut it.
+        nearer = candidate & _boxes_meet(b, c)
         # Links with the same occluders (the phalanges of one finger behind another, often) share
         # one union of them; a link without occluders keeps its outline (what the difference with
         # an empty polygon returns).
@@ -311,6 +321,12 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
     if grown is not None:
         vis.__dict__["grown"] = grown  # already built for the bounds (the cached property's slot)
     return vis
+
+
+def _boxes_meet(b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """(len(b), len(c)) True where box b[i] meets box c[j] (xmin, ymin, xmax, ymax; closed)."""
+    return ((c[None, :, 0] <= b[:, None, 2]) & (c[None, :, 2] >= b[:, None, 0])
+            & (c[None, :, 1] <= b[:, None, 3]) & (c[None, :, 3] >= b[:, None, 1]))
 
 
 def window_masks(polygons: np.ndarray, points: np.ndarray) -> np.ndarray:
