@@ -7,7 +7,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 
-import jax.numpy as jnp
 import numpy as np
 import shapely
 
@@ -92,7 +91,9 @@ def end_radii(camera, depth: np.ndarray, radius: np.ndarray, ok: np.ndarray) -> 
 def observe(ctx: CameraContext, q: np.ndarray) -> Observation:
     """Steps 1-3 of the pipeline at pose ``q``: kinematics, samplers, visibility, profiles."""
     config, clock = ctx.config, ctx.clock
-    view = project_pose(ctx.model, ctx.camera, jnp.asarray(q))
+    # q goes in as NumPy: the jitted call converts it with its arguments (jnp.asarray first costs
+    # a device operation of its own)
+    view = project_pose(ctx.model, ctx.camera, np.asarray(q, float))
     start, end = np.asarray(view.link_start_px, float), np.asarray(view.link_end_px, float)
     depth, radius = np.asarray(view.link_depth, float), np.asarray(view.link_radius_px, float)
     clock.lap("kinematics")

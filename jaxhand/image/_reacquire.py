@@ -6,7 +6,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 
-import jax.numpy as jnp
 import numpy as np
 
 from ..kinematics import project_pose
@@ -82,7 +81,7 @@ def search_turns(ctx: CameraContext, links: np.ndarray, qs: Sequence[np.ndarray]
     model, config, clock = ctx.model, ctx.config, ctx.clock
     n, L = len(qs), model.n_links
     links = np.asarray(links, int)
-    views = [project_pose(model, ctx.camera, jnp.asarray(qc)) for qc in qs]
+    views = [project_pose(model, ctx.camera, np.asarray(qc, float)) for qc in qs]
     geometry = [(np.asarray(v.link_start_px, float), np.asarray(v.link_end_px, float),
                  np.asarray(v.link_depth, float), np.asarray(v.link_radius_px, float)) for v in views]
     tips = [np.asarray(v.tips_px, float) for v in views]
