@@ -80,7 +80,7 @@ class Visibility:
         """(links,) window polygons: grown outline less the union of its nearer covers."""
         if not self.cut:
             return self.grown
-        none = shapely.Polygon()
+        none = _EMPTY
         # Links with the same occluders (the phalanges of one finger behind another, often) share
         # one union of them.
         unions: dict[bytes, object] = {}
@@ -126,6 +126,8 @@ class Visibility:
         return (own & finite).reshape(lead)
 
 
+# One empty polygon for every empty outline (geometries are immutable; building one parses WKT).
+_EMPTY = shapely.Polygon()
 # A buffer of quad_segs=4 reaches at least this share of its distance (chords of 22.5-degree arcs).
 _ARC_COS = float(np.cos(np.pi / 8))
 # ... and at most this share past it (GEOS may drop an input vertex within 1 % of the distance).
@@ -208,7 +210,7 @@ def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.nda
     # string is built straight from the array (a multipoint first makes one Point per vertex).
     hulls = shapely.convex_hull(shapely.linestrings(cloud))
     hulls = shapely.simplify(hulls, simplify_px) if simplify_px > 0 else hulls
-    return np.where(ok, hulls, shapely.Polygon())
+    return np.where(ok, hulls, _EMPTY) if not ok.all() else hulls
 
 
 def _pills(start_px, end_px, radius_start, radius_end, config: VisibilityConfig) -> np.ndarray:
@@ -303,7 +305,6 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
     else:
         visible = outlines.copy()
     w, h = image_size
-    frame = shapely.box(-0.5, -0.5, w - 0.5, h - 0.5)
     area = shapely.area(outlines)
     # Only a pill that reaches past the image border is clipped by it (GEOS's overlay is the
     # slowest step here); inside the image the visible area is the truncated polygon's own.
@@ -312,6 +313,7 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
     seen_area = shapely.area(visible)
     if not inside.all():
         out = ~inside
+        frame = shapely.box(-0.5, -0.5, w - 0.5, h - 0.5)
         seen_area[out] = shapely.area(shapely.intersection(visible[out], frame))
     share = np.where(area > 0, seen_area / np.where(area > 0, area, 1.0), 0.0)
     pills = _pills(start_px, end_px, radius_start, radius_end, config)
