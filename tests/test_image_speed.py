@@ -186,3 +186,24 @@ def test_window_outlines_are_the_eager_coordinates(hand27):
     windows = ImageFrontEnd(seq.model, seq.cameras, config).extract(images, q, None, 0).diagnostics.windows
     assert len(windows) == 2 and all(np.asarray(p).shape[-1] == 2 for p in windows[0])
     np.testing.assert_array_equal(np.concatenate(windows[1]), np.concatenate(eager[1]))
+
+
+@pytest.mark.parametrize("data_name", ["two_fingers", "hand27"])
+@pytest.mark.parametrize("offset_deg", [0.0, 6.0])
+def test_window_mask_equals_the_window_polygons(request, data_name, offset_deg):
+    """The pill-distance window test gives shapely's answer on the built window polygons, for
+    profile samples and for dense points jittered around them (many inside the band where the
+    polygon and the pill differ, decided by shapely)."""
+    data = request.getfixturevalue(data_name)
+    rng = np.random.default_rng(3)
+    n_in = n_out = 0
+    for obs in _observations(data, offset_deg):
+        vis = obs.visibility
+        pts = _probe_points(obs)
+        pts = np.concatenate([pts, pts + rng.uniform(-0.6, 0.6, pts.shape)], 1)
+        fast = vis.window_mask(pts)
+        np.testing.assert_array_equal(fast, window_masks(vis.windows, pts))
+        n_in, n_out = n_in + int(fast.sum()), n_out + int((~fast).sum())
+        tl = np.array([len(obs.start) - 1, 0])
+        np.testing.assert_array_equal(vis.rows(tl).window_mask(pts[tl]), window_masks(vis.windows[tl], pts[tl]))
+    assert n_in > 100 and n_out > 100

@@ -7,8 +7,8 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 
-import jax.numpy as jnp
 import numpy as np
+import shapely
 
 from .._errors import InputError
 from ..camera import Perspective, as_rig
@@ -19,7 +19,8 @@ from ._diagnostics import Clock
 from ._sampling import as_grey, sample_profiles
 from ._state import ImageState
 from ._trackers import LinkSamplers, place_link_samplers
-from ._visibility import Visibility, compute_visibility, inside_polygons, same_chain, window_masks
+from ._visibility import Visibility, compute_visibility, same_chain
+from ._xy import all_last, finite_xy
 
 __all__ = ["CameraContext", "Observation", "observe", "end_radii", "off_other_links", "against_background",
            "as_images", "prepare", "matching_state", "layout"]
@@ -90,7 +91,9 @@ def end_radii(camera, depth: np.ndarray, radius: np.ndarray, ok: np.ndarray) -> 
 def observe(ctx: CameraContext, q: np.ndarray) -> Observation:
     """Steps 1-3 of the pipeline at pose ``q``: kinematics, samplers, visibility, profiles."""
     config, clock = ctx.config, ctx.clock
-    view = project_pose(ctx.model, ctx.camera, jnp.asarray(q))
+    # q goes in as NumPy: the jitted call converts it with its arguments (jnp.asarray first costs
+    # a device operation of its own)
+    view = project_pose(ctx.model, ctx.camera, np.asarray(q, float))
     start, end = np.asarray(view.link_start_px, float), np.asarray(view.link_end_px, float)
     depth, radius = np.asarray(view.link_depth, float), np.asarray(view.link_radius_px, float)
     clock.lap("kinematics")
@@ -102,7 +105,7 @@ def observe(ctx: CameraContext, q: np.ndarray) -> Observation:
     clock.lap("visibility")
     values, usable = sample_profiles(ctx.grey, samplers.points, config.samplers.interpolation)
     clock.lap("sampling")
-    window = window_masks(vis.windows, samplers.points) & usable
+    window = vis.window_mask(samplers.points) & usable
     clock.lap("visibility")
     return Observation(start=start, end=end, tips=np.asarray(view.tips_px, float), samplers=samplers,
                        visibility=vis, values=values, usable=usable, window=window)
@@ -116,11 +119,31 @@ def off_other_links(obs: Observation, points: np.ndarray, links: np.ndarray | No
     L = len(outlines)
     links = np.arange(L) if links is None else np.asarray(links, int)
     pts = np.asarray(points, float)
-    # (links, ..., L): each point, each outline; shapely's prepared predicate (edges=None) is
-    # faster here than the NumPy edge test of inside_polygons.
-    inside = inside_polygons(outlines, pts, edges=None)
-    own = np.arange(L) == links.reshape((-1,) + (1,) * (pts.ndim - 1))
-    return ~np.any(inside & ~own, axis=-1)
+    flat = pts.reshape(len(pts), -1, 2)
+    finite = finite_xy(flat)
+    x, y = flat[..., 0], flat[..., 1]
+    b = shapely.bounds(outlines)  # (L, 4); NaN for an empty outline, which meets nothing
+    # Only the other outlines whose boxes meet the box of a row's points, then only the points
+    # inside such a box, are asked of shapely's prepared predicate (the same test as contains_xy
+    # of every point against every outline).
+    xs, ys = np.where(finite, x, np.nan), np.where(finite, y, np.nan)
+    with np.errstate(invalid="ignore"):  # a row of NaN points gives a NaN box, which meets nothing
+        lo_x, hi_x = np.fmin.reduce(xs, 1, initial=np.inf), np.fmax.reduce(xs, 1, initial=-np.inf)
+        lo_y, hi_y = np.fmin.reduce(ys, 1, initial=np.inf), np.fmax.reduce(ys, 1, initial=-np.inf)
+    meet = ((b[None, :, 0] <= hi_x[:, None]) & (b[None, :, 2] >= lo_x[:, None]) & (b[None, :, 1] <= hi_y[:, None])
+            & (b[None, :, 3] >= lo_y[:, None]) & (np.arange(L)[None, :] != links[:, None]))
+    covered = np.zeros(finite.shape, bool)
+    r, g = np.nonzero(meet)
+    if len(r):
+        bb = b[g][:, None, :]
+        xr, yr = x[r], y[r]
+        cand = (finite[r] & (xr >= bb[..., 0]) & (xr <= bb[..., 2]) & (yr >= bb[..., 1]) & (yr <= bb[..., 3]))
+        a, k = np.nonzero(cand)
+        if len(a):
+            shapely.prepare(outlines)
+            hit = shapely.contains_xy(outlines[g[a]], xr[a, k], yr[a, k])
+            covered[r[a[hit]], k[hit]] = True
+    return ~covered.reshape(pts.shape[:-1])
 
 
 def against_background(obs: Observation, reach: Sequence[float]) -> np.ndarray:
@@ -133,7 +156,7 @@ def against_background(obs: Observation, reach: Sequence[float]) -> np.ndarray:
     off = (s.radius_px[:, None] * at)[:, None, :, None] * s.normal[:, None, None, :]
     clear = off_other_links(obs, s.centres[:, :, None, :] + off)  # (links, samplers, 2 * reaches)
     n = len(reach)
-    return np.stack([clear[..., :n].all(-1), clear[..., n:].all(-1)], -1)
+    return np.stack([all_last(clear[..., :n]), all_last(clear[..., n:])], -1)
 
 
 def as_images(images, n_cameras: int, sizes: Sequence[tuple[int, int]]) -> list[np.ndarray]:
@@ -171,8 +194,24 @@ def prepare(images, model: Model, cameras, q, config: ImageConfig | None, name: 
     rig = as_rig(cameras)
     greys = as_images(images, len(rig), [c.size for c in rig])
     q = validate_q(model, q, name=name)
+    return config, rig, greys, q, model_chain(model)
+
+
+_CHAINS: dict[int, tuple[Model, np.ndarray]] = {}
+
+
+def model_chain(model: Model) -> np.ndarray:
+    """:func:`same_chain` of ``model``, kept for the last few models (a tracker calls with one
+    model every frame; the model's ancestor table is rebuilt on each access)."""
+    hit = _CHAINS.get(id(model))
+    if hit is not None and hit[0] is model:
+        return hit[1]
     chain = same_chain(model.link_frame, model.ancestors)
-    return config, rig, greys, q, chain
+    chain.setflags(write=False)
+    if len(_CHAINS) >= 8:
+        _CHAINS.pop(next(iter(_CHAINS)))
+    _CHAINS[id(model)] = (model, chain)
+    return chain
 
 
 def matching_state(state: ImageState | None, n_cameras: int, model: Model, config: ImageConfig) -> ImageState:

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._xy import dot_xy, norm_xy
+
 __all__ = ["ransac_pca", "axial_line", "offset_towards", "line_params", "line_point_direction"]
 
 
@@ -36,18 +38,21 @@ def ransac_pca(points: np.ndarray, valid: np.ndarray, tau_px: float, min_inliers
     m = pts.shape[-2]
     i, j = np.triu_indices(m, k=1)  # every pair, in a fixed order
     d = pts[..., j, :] - pts[..., i, :]  # (..., P, 2)
-    norm = np.linalg.norm(d, axis=-1)
+    norm = norm_xy(d)
     pair_ok = valid[..., i] & valid[..., j] & (norm > 1e-9)
     nrm = np.stack([-d[..., 1], d[..., 0]], -1) / np.where(pair_ok, norm, 1.0)[..., None]
     # distance of every point to every pair's line: (..., P, m)
-    dist = np.abs(np.einsum("...pk,...mk->...pm", nrm, pts) - np.sum(nrm * pts[..., i, :], -1)[..., None])
+    # (the same products and sum as einsum("...pk,...mk->...pm"), without its per-call parsing)
+    proj = nrm[..., :, None, 0] * pts[..., None, :, 0] + nrm[..., :, None, 1] * pts[..., None, :, 1]
+    dist = np.abs(proj - dot_xy(nrm, pts[..., i, :])[..., None])
     inl = (dist < tau_px) & valid[..., None, :] & pair_ok[..., None]
     counts = inl.sum(-1) if m > 1 else np.zeros(pts.shape[:-2] + (0,), int)
     if counts.shape[-1] == 0:
         zeros = np.zeros(pts.shape[:-2] + (2,))
         return zeros, zeros + [1.0, 0.0], np.zeros(pts.shape[:-2], bool), np.zeros(valid.shape, bool)
     best = np.argmax(counts, -1)
-    inliers = np.take_along_axis(inl, best[..., None, None], -2)[..., 0, :]
+    P = inl.shape[-2]
+    inliers = inl.reshape(-1, P, m)[np.arange(best.size), best.reshape(-1)].reshape(valid.shape)  # the best pair's
     n_in = inliers.sum(-1)
     ok = n_in >= max(2, min_inliers)
     inliers = inliers & ok[..., None]
@@ -80,9 +85,9 @@ def axial_line(p1: np.ndarray, v1: np.ndarray, p2: np.ndarray, v2: np.ndarray, d
         (p_ax, v_ax): a point on the axial line and its unit direction.
     """
     plus, minus = v1 + v2, v1 - v2
-    use_plus = np.linalg.norm(plus, axis=-1) >= np.linalg.norm(minus, axis=-1)
+    use_plus = norm_xy(plus) >= norm_xy(minus)
     v = np.where(use_plus[..., None], plus, minus) / 2
-    nv = np.linalg.norm(v, axis=-1, keepdims=True)
+    nv = norm_xy(v)[..., None]
     v = v / np.where(nv > 0, nv, 1.0)  # |v1 + v2| >= sqrt(2) for the chosen sign, so nv > 0 for unit input
     det = v1[..., 0] * (-v2[..., 1]) - (-v2[..., 0]) * v1[..., 1]
     cross = np.abs(det) > det_eps
@@ -97,7 +102,7 @@ def offset_towards(p: np.ndarray, v: np.ndarray, target: np.ndarray, distance: n
     """Move a line (point ``p``, unit direction ``v``) by ``distance`` along its normal, towards the side
     where ``target`` lies (DigitEyes §4: a single boundary offset by the radius towards the axis)."""
     n = np.stack([-v[..., 1], v[..., 0]], -1)
-    side = np.sign(np.sum((target - p) * n, -1))
+    side = np.sign(dot_xy(target - p, n))
     side = np.where(side == 0, 1.0, side)
     return p + (side * distance)[..., None] * n
 
@@ -111,11 +116,11 @@ def line_params(p: np.ndarray, v: np.ndarray, reference: np.ndarray | None = Non
     """
     v = np.asarray(v, float)
     if reference is not None:
-        v = np.where((np.sum(v * reference, -1) < 0)[..., None], -v, v)
-    nv = np.linalg.norm(v, axis=-1, keepdims=True)
+        v = np.where((dot_xy(v, reference) < 0)[..., None], -v, v)
+    nv = norm_xy(v)[..., None]
     v = v / np.where(nv > 0, nv, 1.0)
     n = np.stack([v[..., 1], -v[..., 0]], -1)
-    return np.concatenate([n, np.sum(n * p, -1, keepdims=True)], -1)
+    return np.concatenate([n, dot_xy(n, p)[..., None]], -1)
 
 
 def line_point_direction(lines: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -6,7 +6,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 
-import jax.numpy as jnp
 import numpy as np
 
 from ..kinematics import project_pose
@@ -14,7 +13,7 @@ from ._context import CameraContext, Observation, against_background, end_radii,
 from ._sampling import sample_profiles
 from ._trackers import place_link_samplers
 from ._view import View, find_tips, search_view
-from ._visibility import compute_visibility, window_masks
+from ._visibility import compute_visibility
 from .searches import TEMPLATE_SEARCHES
 
 __all__ = ["reacquire", "reacquire_full", "turns_to_try", "search_turns", "parent_links", "Turns"]
@@ -82,7 +81,7 @@ def search_turns(ctx: CameraContext, links: np.ndarray, qs: Sequence[np.ndarray]
     model, config, clock = ctx.model, ctx.config, ctx.clock
     n, L = len(qs), model.n_links
     links = np.asarray(links, int)
-    views = [project_pose(model, ctx.camera, jnp.asarray(qc)) for qc in qs]
+    views = [project_pose(model, ctx.camera, np.asarray(qc, float)) for qc in qs]
     geometry = [(np.asarray(v.link_start_px, float), np.asarray(v.link_end_px, float),
                  np.asarray(v.link_depth, float), np.asarray(v.link_radius_px, float)) for v in views]
     tips = [np.asarray(v.tips_px, float) for v in views]
@@ -114,7 +113,7 @@ def search_turns(ctx: CameraContext, links: np.ndarray, qs: Sequence[np.ndarray]
     pts = samplers.points[searched]
     values, usable = sample_profiles(ctx.grey, pts, config.samplers.interpolation)
     clock.lap("sampling")
-    window = window_masks(vis.rows(searched).windows, pts) & usable
+    window = vis.rows(searched).window_mask(pts) & usable
     clock.lap("visibility")
 
     def observe_turn(i: int) -> Observation:

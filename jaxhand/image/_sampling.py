@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from .._errors import InputError
+from ._xy import finite_xy
 
 __all__ = ["as_grey", "sample_profiles", "INTERPOLATION_FLAGS"]
 
@@ -87,7 +88,7 @@ def sample_profiles(grey: np.ndarray, points: np.ndarray, interpolation: str = "
     shape = pts.shape[:-1]
     h, w = grey.shape
     flat = pts.reshape(-1, 2)
-    finite = np.all(np.isfinite(flat), -1)
+    finite = finite_xy(flat)
     inside = finite & (flat[:, 0] >= 0) & (flat[:, 0] <= w - 1) & (flat[:, 1] >= 0) & (flat[:, 1] <= h - 1)
     x = np.clip(np.where(finite, flat[:, 0], -_CLIP_PX), -_CLIP_PX, w - 1 + _CLIP_PX)
     y = np.clip(np.where(finite, flat[:, 1], -_CLIP_PX), -_CLIP_PX, h - 1 + _CLIP_PX)

@@ -20,6 +20,7 @@ import dataclasses
 import numpy as np
 
 from ._config import SamplerConfig, TipConfig
+from ._xy import dot_xy, finite_xy, nan_to_num, norm_xy
 
 __all__ = ["LinkSamplers", "TipSamplers", "place_link_samplers", "refine_tip", "place_tip_samplers"]
 
@@ -67,8 +68,8 @@ def place_link_samplers(start_px: np.ndarray, end_px: np.ndarray, radius_px: np.
     end = np.asarray(end_px, float)
     radius = np.asarray(radius_px, float)
     d = end - start
-    length = np.linalg.norm(d, axis=-1)
-    ok = (np.all(np.isfinite(start), -1) & np.all(np.isfinite(end), -1) & np.isfinite(radius)
+    length = norm_xy(d)
+    ok = (finite_xy(start) & finite_xy(end) & np.isfinite(radius)
           & (radius > 0) & (length >= max(config.min_length_px, 1e-9)))
     # Guard: a link that is not ok gets a dummy direction so every array stays finite; its
     # sample positions are NaN below, which the sampler reports as unusable.
@@ -79,7 +80,7 @@ def place_link_samplers(start_px: np.ndarray, end_px: np.ndarray, radius_px: np.
     spacing = np.where(ok, 2 * config.scope * np.where(ok, radius, 0.0) / (config.points - 1), 0.0)
     j = np.arange(config.points) - config.centre
     pts = centres[:, :, None, :] + (j[None, None, :, None] * spacing[:, None, None, None]) * n[:, None, None, :]
-    return LinkSamplers(direction=u, normal=n, radius_px=np.where(ok, radius, 0.0), length_px=np.nan_to_num(length),
+    return LinkSamplers(direction=u, normal=n, radius_px=np.where(ok, radius, 0.0), length_px=nan_to_num(length),
                         ok=ok, centres=centres, spacing_px=spacing, points=pts)
 
 
@@ -95,9 +96,9 @@ def refine_tip(tip_px: np.ndarray, p_ax: np.ndarray, v_ax: np.ndarray) -> tuple[
     Returns:
         (refined tip, v0).
     """
-    nv = np.linalg.norm(v_ax, axis=-1, keepdims=True)
+    nv = norm_xy(v_ax)[..., None]
     v0 = v_ax / np.where(nv > 0, nv, 1.0)  # Guard: a zero direction stays zero, giving p~ = p_ax.
-    return p_ax + np.sum((tip_px - p_ax) * v0, -1, keepdims=True) * v0, v0
+    return p_ax + dot_xy(tip_px - p_ax, v0)[..., None] * v0, v0
 
 
 @dataclasses.dataclass(frozen=True)

@@ -11,7 +11,7 @@ from ._context import CameraContext, Observation, against_background, off_other_
 from ._lines import axial_line, line_params, offset_towards, ransac_pca
 from ._sampling import sample_profiles
 from ._trackers import LinkSamplers, TipSamplers, place_tip_samplers
-from ._visibility import window_masks
+from ._xy import all_last, dot_xy, finite_last, finite_xy, nan_to_num
 from .searches import TEMPLATE_SEARCHES, Edges, Profiles
 from .searches._common import gaussian_derivative, masked_argmax, simple_derivative
 
@@ -22,7 +22,7 @@ def edges_to_px(samplers: LinkSamplers, edges: Edges, centre: float) -> tuple[np
     """(links, samplers, 2, 2) boundary points in pixels (NaN where not found) and which were found."""
     off = (edges.pos - centre) * samplers.spacing_px[:, None, None]  # (links, samplers, 2), px along the normal
     pts = samplers.centres[:, :, None, :] + off[..., None] * samplers.normal[:, None, None, :]
-    ok = edges.valid & samplers.ok[:, None, None] & np.all(np.isfinite(pts), -1)
+    ok = edges.valid & samplers.ok[:, None, None] & finite_xy(pts)
     return np.where(ok[..., None], pts, np.nan), ok
 
 
@@ -57,23 +57,23 @@ def fit_links(obs: Observation, edge_px: np.ndarray, edge_ok: np.ndarray, config
     offset by the radius towards the predicted axis."""
     lc = config.lines
     s = obs.samplers
-    pts = np.swapaxes(np.nan_to_num(edge_px), 1, 2)  # (links, 2, samplers, 2)
+    pts = np.swapaxes(nan_to_num(edge_px), 1, 2)  # (links, 2, samplers, 2)
     ok_pts = np.swapaxes(edge_ok, 1, 2)
     p, v, ok, inliers = ransac_pca(pts, ok_pts, lc.tau_px, lc.min_inliers)
     both = ok[:, 0] & ok[:, 1]
     p_ax, v_ax = axial_line(p[:, 0], v[:, 0], p[:, 1], v[:, 1], lc.det_eps)
     single = lc.single_edge & (ok[:, 0] ^ ok[:, 1])
     k = np.where(ok[:, 0], 0, 1)
-    p_one = np.take_along_axis(p, k[:, None, None], 1)[:, 0]
-    v_one = np.take_along_axis(v, k[:, None, None], 1)[:, 0]
-    mid = 0.5 * (np.nan_to_num(obs.start) + np.nan_to_num(obs.end))
+    rows = np.arange(len(k))
+    p_one, v_one = p[rows, k], v[rows, k]
+    mid = 0.5 * (nan_to_num(obs.start) + nan_to_num(obs.end))
     p_one = offset_towards(p_one, v_one, mid, s.radius_px)
     p_ax = np.where(single[:, None], p_one, p_ax)
     v_ax = np.where(single[:, None], v_one, v_ax)
-    v_ax = np.where((np.sum(v_ax * s.direction, -1) < 0)[:, None], -v_ax, v_ax)  # point from start to end
+    v_ax = np.where((dot_xy(v_ax, s.direction) < 0)[:, None], -v_ax, v_ax)  # point from start to end
     lines = line_params(p_ax, v_ax)
     share = obs.visibility.visible_share
-    valid = s.ok & (both | single) & (share >= lc.min_visible) & np.all(np.isfinite(lines), -1)
+    valid = s.ok & (both | single) & (share >= lc.min_visible) & finite_last(lines)
     weight = (share if lc.weight_by_visibility else np.ones_like(share)) * np.where(single, lc.single_edge_weight,
                                                                                     1.0)
     lines = np.where(valid[:, None], lines, np.array([1.0, 0.0, 0.0]))
@@ -102,9 +102,9 @@ def find_tips(ctx: CameraContext, obs: Observation, line_ok: np.ndarray, p_ax: n
     s = obs.samplers
     tl = np.asarray(ctx.model.tip_links, int)
     # The terminal axial line when it was measured, else the predicted link axis.
-    p = np.where(line_ok[tl, None], p_ax[tl], np.nan_to_num(obs.start[tl]))
+    p = np.where(line_ok[tl, None], p_ax[tl], nan_to_num(obs.start[tl]))
     v = np.where(line_ok[tl, None], v_ax[tl], s.direction[tl])
-    ts = place_tip_samplers(np.nan_to_num(obs.tips), p, v, s.radius_px[tl], tc)
+    ts = place_tip_samplers(nan_to_num(obs.tips), p, v, s.radius_px[tl], tc)
     values, usable = sample_profiles(ctx.grey, ts.points, config.samplers.interpolation)
     if tc.sigma > 0:
         d, d_ok, pos = gaussian_derivative(values, usable, tc.sigma)
@@ -118,12 +118,12 @@ def find_tips(ctx: CameraContext, obs: Observation, line_ok: np.ndarray, p_ax: n
     centre = ts.refined + ts.radius_px[:, None] * ts.v0
     edge = centre + along[:, None] * ts.v0
     tip = edge - ts.radius_px[:, None] * ts.v0
-    seen = window_masks(obs.visibility.windows[tl], tip[:, None, :])[:, 0]
+    seen = obs.visibility.rows(tl).window_mask(tip[:, None, :])[:, 0]
     # Past the tip boundary there must be background (TipConfig.beyond).
     beyond = tip[:, None, :] + (ts.radius_px[:, None] * np.asarray(tc.beyond, float))[..., None] * ts.v0[:, None, :]
-    seen &= np.all(off_other_links(obs, beyond, tl), axis=-1)
+    seen &= all_last(off_other_links(obs, beyond, tl))
     valid = (s.ok[tl] & found & (strength >= tc.min_strength) & (strength > 0) & seen
-             & (obs.visibility.visible_share[tl] >= config.lines.min_visible) & np.all(np.isfinite(tip), -1)
+             & (obs.visibility.visible_share[tl] >= config.lines.min_visible) & finite_xy(tip)
              & (line_ok[tl] | (not tc.need_line)))
     return TipFit(tips=np.where(valid[:, None], tip, 0.0), valid=valid, ts=ts,
                   edge=np.where(valid[:, None], edge, np.nan), strength=np.where(valid, strength, 0.0))

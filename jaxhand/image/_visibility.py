@@ -7,9 +7,10 @@ every pill is cut where nearer pills cover it (Boolean difference, shapely), whi
 truncated polygons of fig. 4.17. Phalanges of one finger (links on one kinematic chain) never cut
 each other, as in the thesis. The window function of a profile is 1 where its samples fall inside
 its link's window polygon: the link's outline grown by ``window_pad`` radii (a strip of
-background), less the nearer pills grown by ``occluder_margin_px``. All geometry calls are
-shapely 2's vectorised array functions; the only Python loop runs over links to merge each one's
-occluders.
+background), less the nearer pills grown by ``occluder_margin_px``. The polygons (for the visible
+shares and overlays) come from shapely 2's vectorised array functions; which samples lie inside a
+window is decided from each point's distance to the pills themselves, which bound the polygons
+from both sides, and by shapely only for the few points between those bounds.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 import shapely
 
 from ._config import VisibilityConfig
+from ._xy import dot_xy, finite_xy, nan_to_num
 
 __all__ = ["Visibility", "pill_outlines", "same_chain", "compute_visibility", "window_masks", "convex_edges",
            "inside_polygons"]
@@ -40,8 +42,15 @@ class Visibility:
         pad_px: (links,) how far each outline is grown for its window (``window_pad`` radii).
         nearer: (links, pills) the pills that cut each link's window (all False: none, or no
             occlusion); its columns index ``covers``.
-        covers: (pills,) the occluding pills grown by ``occluder_margin_px``.
+        covers: (pills,) the occluding pills grown by ``occluder_margin_px`` (built only for the
+            pills that can cut a window, None for the others, which no row of ``nearer`` names).
         cut: whether windows are cut at all (occlusion on, more than one link).
+        pills: (links, 11) each pill as start (x, y), end - start, start radius, end - start
+            radius, 1 / length, 1 / length², the cone's slope term, the slack (px) by which its
+            simplified outline may lie inside the pill, and whether one end circle holds the
+            other (:func:`pill_distance`); an empty outline's pill lies far off the image.
+        cover_pills: (pills, 7) the same for ``covers``' pills.
+        margin_px: how far ``covers`` are grown (``occluder_margin_px``).
 
     ``grown`` (the grown outlines) and ``windows`` (grown outline less the union of its nearer
     covers) are shapely polygons built on first use (a batch of turns needs the searched links'
@@ -57,6 +66,9 @@ class Visibility:
     nearer: np.ndarray
     covers: np.ndarray
     cut: bool
+    pills: np.ndarray
+    cover_pills: np.ndarray
+    margin_px: float
 
     @functools.cached_property
     def grown(self) -> np.ndarray:
@@ -68,7 +80,7 @@ class Visibility:
         """(links,) window polygons: grown outline less the union of its nearer covers."""
         if not self.cut:
             return self.grown
-        none = shapely.Polygon()
+        none = _EMPTY
         # Links with the same occluders (the phalanges of one finger behind another, often) share
         # one union of them.
         unions: dict[bytes, object] = {}
@@ -84,7 +96,82 @@ class Visibility:
         """The visibility of the links ``at`` only (their windows still cut by every cover)."""
         return Visibility(outlines=self.outlines[at], depth=self.depth[at], order=None, visible=self.visible[at],
                           visible_share=self.visible_share[at], pad_px=self.pad_px[at], nearer=self.nearer[at],
-                          covers=self.covers, cut=self.cut)
+                          covers=self.covers, cut=self.cut, pills=self.pills[at], cover_pills=self.cover_pills,
+                          margin_px=self.margin_px)
+
+    def window_mask(self, points: np.ndarray) -> np.ndarray:
+        """(links, ...) True where ``points[i, ...]`` (NaN: False) lies inside link i's window, the
+        same as ``window_masks(self.windows, points)`` without building the windows: inside the
+        grown outline and off the closure of every nearer cover, decided from each pill's
+        distance, and by shapely only within the band where the polygon and the pill differ."""
+        pts = np.asarray(points, float)
+        lead = pts.shape[:-1]
+        flat = pts.reshape(len(pts), -1, 2)
+        finite = finite_xy(flat)
+        x = np.where(finite, flat[..., 0], 0.0)
+        y = np.where(finite, flat[..., 1], 0.0)
+        pad = self.pad_px[:, None]
+        lo = np.where(pad > 0, pad * _ARC_COS, 0.0) - self.pills[:, None, 9]
+        own = _decide(pill_distance(x, y, self.pills[:, None, :]), lo, pad * _BUFFER_OVER,
+                      lambda i, k: shapely.contains_xy(_prepared(self.grown)[i], x[i, k], y[i, k]))
+        if self.cut and self.nearer.any():
+            i, j = np.nonzero(self.nearer)  # rows sorted, so each row's pairs are contiguous
+            m = self.margin_px
+            lo = (m * _ARC_COS if m > 0 else 0.0) - self.cover_pills[j, None, 9]
+            covered = _decide(pill_distance(x[i], y[i], self.cover_pills[j, None, :]), lo, m * _BUFFER_OVER,
+                              lambda a, k: shapely.intersects_xy(_prepared(self.covers)[j[a]], x[i[a], k],
+                                                                 y[i[a], k]))
+            first = np.flatnonzero(np.concatenate([[True], i[1:] != i[:-1]]))
+            own[i[first]] &= ~np.logical_or.reduceat(covered, first, axis=0)
+        return (own & finite).reshape(lead)
+
+
+# One empty polygon for every empty outline (geometries are immutable; building one parses WKT).
+_EMPTY = shapely.Polygon()
+# A buffer of quad_segs=4 reaches at least this share of its distance (chords of 22.5-degree arcs).
+_ARC_COS = float(np.cos(np.pi / 8))
+# ... and at most this share past it (GEOS may drop an input vertex within 1 % of the distance).
+_BUFFER_OVER = 1.02
+# Distances within this (px) of a bound are left to shapely (rounding of the distance itself).
+_BAND_EPS = 1e-6
+
+
+def _prepared(geoms: np.ndarray) -> np.ndarray:
+    shapely.prepare(geoms)
+    return geoms
+
+
+def pill_distance(x: np.ndarray, y: np.ndarray, pills: np.ndarray) -> np.ndarray:
+    """Distance of points (x, y) from the edge of pills (negative inside; about 1e12 for an empty one).
+
+    A pill is the convex hull of its two end circles, the union of the circles centred on the
+    segment with the radius interpolated linearly, so the distance is the minimum over t of
+    ``|p - c(t)| - r(t)``, a convex function of t minimised in closed form.
+
+    Args:
+        x, y: point coordinates, broadcasting against ``pills[..., 0]``.
+        pills: (..., 11) :attr:`Visibility.pills`.
+    """
+    wx, wy = x - pills[..., 0], y - pills[..., 1]
+    dx, dy = pills[..., 2], pills[..., 3]
+    h = np.abs(wx * dy - wy * dx) * pills[..., 6]
+    t = (wx * dx + wy * dy) * pills[..., 7] + pills[..., 8] * h
+    t = np.minimum(np.maximum(t, 0.0, out=t), 1.0, out=t)
+    d = np.hypot(wx - t * dx, wy - t * dy) - (pills[..., 4] + t * pills[..., 5])
+    if pills[..., 10].any():  # one end circle holds the other (or a point-like segment): the larger one
+        ends = np.minimum(np.hypot(wx, wy) - pills[..., 4], np.hypot(wx - dx, wy - dy) - pills[..., 4] - pills[..., 5])
+        d = np.where(pills[..., 10] > 0, ends, d)
+    return d
+
+
+def _decide(d: np.ndarray, lo, hi, exact) -> np.ndarray:
+    """``d < lo``: inside; ``d > hi``: outside; in between (within ``_BAND_EPS``) ``exact(*index)``."""
+    inside = d < lo - _BAND_EPS
+    band = (d <= hi + _BAND_EPS) & ~inside
+    if band.any():
+        index = np.nonzero(band)
+        inside[index] = exact(*index)
+    return inside
 
 
 def _grow(outlines: np.ndarray, pad_px: np.ndarray) -> np.ndarray:
@@ -115,7 +202,7 @@ def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.nda
     e = np.asarray(end_px, float)
     rs = np.asarray(radius_start, float)
     re = np.asarray(radius_end, float)
-    ok = (np.all(np.isfinite(s), -1) & np.all(np.isfinite(e), -1) & np.isfinite(rs) & np.isfinite(re)
+    ok = (finite_xy(s) & finite_xy(e) & np.isfinite(rs) & np.isfinite(re)
           & (rs > 0) & (re > 0))
     cloud = np.concatenate([s[:, None] + rs[:, None, None] * circle, e[:, None] + re[:, None, None] * circle], 1)
     cloud = np.where(ok[:, None, None], cloud, 0.0)
@@ -123,7 +210,32 @@ def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.nda
     # string is built straight from the array (a multipoint first makes one Point per vertex).
     hulls = shapely.convex_hull(shapely.linestrings(cloud))
     hulls = shapely.simplify(hulls, simplify_px) if simplify_px > 0 else hulls
-    return np.where(ok, hulls, shapely.Polygon())
+    return np.where(ok, hulls, _EMPTY) if not ok.all() else hulls
+
+
+def _pills(start_px, end_px, radius_start, radius_end, config: VisibilityConfig) -> np.ndarray:
+    """(links, 11) :attr:`Visibility.pills`. The outline's hull vertices lie on the end circles, so
+    its edges cut into the pill by at most the chord depth ``r (1 - cos(pi / (2 arc_points)))``,
+    and the simplification moves them in by at most ``simplify_px`` more: the slack."""
+    s, e = np.asarray(start_px, float), np.asarray(end_px, float)
+    rs, re = np.asarray(radius_start, float), np.asarray(radius_end, float)
+    ok = finite_xy(s) & finite_xy(e) & np.isfinite(rs) & np.isfinite(re) & (rs > 0) \
+        & (re > 0)
+    far = np.array([1e12, 1e12])  # an empty pill: far from every point
+    s, e = np.where(ok[:, None], s, far), np.where(ok[:, None], e, far)
+    rs, re = np.where(ok, rs, 0.0), np.where(ok, re, 0.0)
+    d, dr = e - s, re - rs
+    L2 = dot_xy(d, d)
+    steep2 = L2 - dr * dr
+    ends = ~(steep2 > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_len = np.where(ends, 0.0, 1.0 / np.sqrt(L2))
+        inv_L2 = np.where(ends, 0.0, 1.0 / L2)
+        ratio = np.where(ends, 0.0, dr * inv_len / np.sqrt(steep2))
+    slack = np.where(ok, np.maximum(rs, re) * (1.0 - np.cos(np.pi / (2 * config.arc_points))) + config.simplify_px,
+                     0.0)
+    return np.stack([s[:, 0], s[:, 1], d[:, 0], d[:, 1], rs, dr, inv_len, inv_L2, ratio, slack, ends.astype(float)],
+                    -1)
 
 
 def same_chain(link_frame, ancestors: np.ndarray) -> np.ndarray:
@@ -149,7 +261,7 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
     outlines = pill_outlines(start_px, end_px, radius_start, radius_end, config.arc_points, config.simplify_px)
     mean_depth = np.nan_to_num(np.asarray(depth, float).mean(-1), nan=np.inf, posinf=np.inf, neginf=np.inf)
     order = np.argsort(-mean_depth, kind="stable")
-    radius = 0.5 * (np.nan_to_num(radius_start) + np.nan_to_num(radius_end))
+    radius = 0.5 * (nan_to_num(radius_start) + nan_to_num(radius_end))
     pad = config.window_pad * radius
     L = len(outlines)
     empty = shapely.is_empty(outlines)
@@ -159,29 +271,40 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
     grown = None
     if cut:
         grown = _grow(outlines, pad)
-        covers = shapely.buffer(outlines, config.occluder_margin_px, quad_segs=4) if config.occluder_margin_px > 0 \
-            else outlines
+        b = nan_to_num(shapely.bounds(grown))
+        candidate = (mean_depth[None, :] < mean_depth[:, None]) & ~np.asarray(chain, bool) & ~empty[None, :]
+        m = config.occluder_margin_px
+        if m > 0:
+            # A cover lies within its outline's box grown by the margin: only the pills whose grown
+            # box meets a candidate's box are buffered (the others cut no window).
+            o = nan_to_num(shapely.bounds(outlines)) + np.array([-1.0, -1.0, 1.0, 1.0]) * (m * _BUFFER_OVER + 1e-9)
+            candidate &= _boxes_meet(b, o)
+            used = np.flatnonzero(candidate.any(0))
+            covers = np.full(L, None, dtype=object)
+            covers[used] = shapely.buffer(outlines[used], m, quad_segs=4)
+            c = np.zeros((L, 4))
+            c[used] = nan_to_num(shapely.bounds(covers[used]))
+        else:
+            c = nan_to_num(shapely.bounds(covers))
         # Only nearer pills of other chains whose bounding boxes meet this one's can cut it.
-        b = np.nan_to_num(shapely.bounds(grown), nan=0.0)
-        c = np.nan_to_num(shapely.bounds(covers), nan=0.0)
-        meet = ((c[None, :, 0] <= b[:, None, 2]) & (c[None, :, 2] >= b[:, None, 0])
-                & (c[None, :, 1] <= b[:, None, 3]) & (c[None, :, 3] >= b[:, None, 1]))
-        nearer = (mean_depth[None, :] < mean_depth[:, None]) & ~np.asarray(chain, bool) & ~empty[None, :] & meet
-        none = shapely.Polygon()
+        nearer = candidate & _boxes_meet(b, c)
         # Links with the same occluders (the phalanges of one finger behind another, often) share
-        # one union of them.
+        # one union of them; a link without occluders keeps its outline (what the difference with
+        # an empty polygon returns).
+        cut_rows = np.flatnonzero(nearer.any(1))
         unions: dict[bytes, object] = {}
-        occl = np.empty(L, dtype=object)
-        for i in range(L):
+        occl = np.empty(len(cut_rows), dtype=object)
+        for n, i in enumerate(cut_rows):
             key = nearer[i].tobytes()
             if key not in unions:
-                unions[key] = shapely.union_all(outlines[nearer[i]]) if nearer[i].any() else none
-            occl[i] = unions[key]
-        visible = shapely.difference(outlines, occl)
+                unions[key] = shapely.union_all(outlines[nearer[i]])
+            occl[n] = unions[key]
+        visible = outlines.copy()
+        if len(cut_rows):
+            visible[cut_rows] = shapely.difference(outlines[cut_rows], occl)
     else:
         visible = outlines.copy()
     w, h = image_size
-    frame = shapely.box(-0.5, -0.5, w - 0.5, h - 0.5)
     area = shapely.area(outlines)
     # Only a pill that reaches past the image border is clipped by it (GEOS's overlay is the
     # slowest step here); inside the image the visible area is the truncated polygon's own.
@@ -190,13 +313,22 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
     seen_area = shapely.area(visible)
     if not inside.all():
         out = ~inside
+        frame = shapely.box(-0.5, -0.5, w - 0.5, h - 0.5)
         seen_area[out] = shapely.area(shapely.intersection(visible[out], frame))
     share = np.where(area > 0, seen_area / np.where(area > 0, area, 1.0), 0.0)
+    pills = _pills(start_px, end_px, radius_start, radius_end, config)
     vis = Visibility(outlines=outlines, depth=mean_depth, order=order, visible=visible,
-                     visible_share=np.clip(share, 0.0, 1.0), pad_px=pad, nearer=nearer, covers=covers, cut=cut)
+                     visible_share=np.clip(share, 0.0, 1.0), pad_px=pad, nearer=nearer, covers=covers, cut=cut,
+                     pills=pills, cover_pills=pills, margin_px=float(config.occluder_margin_px))
     if grown is not None:
         vis.__dict__["grown"] = grown  # already built for the bounds (the cached property's slot)
     return vis
+
+
+def _boxes_meet(b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """(len(b), len(c)) True where box b[i] meets box c[j] (xmin, ymin, xmax, ymax; closed)."""
+    return ((c[None, :, 0] <= b[:, None, 2]) & (c[None, :, 2] >= b[:, None, 0])
+            & (c[None, :, 1] <= b[:, None, 3]) & (c[None, :, 3] >= b[:, None, 1]))
 
 
 def window_masks(polygons: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -212,7 +344,7 @@ def window_masks(polygons: np.ndarray, points: np.ndarray) -> np.ndarray:
     pts = np.asarray(points, float)
     geoms = np.asarray(polygons, dtype=object).reshape((-1,) + (1,) * (pts.ndim - 2))
     shapely.prepare(geoms)
-    finite = np.all(np.isfinite(pts), -1)
+    finite = finite_xy(pts)
     x = np.where(finite, pts[..., 0], 0.0)
     y = np.where(finite, pts[..., 1], 0.0)
     return shapely.contains_xy(geoms, x, y) & finite
@@ -283,7 +415,7 @@ def inside_polygons(polygons: np.ndarray, points: np.ndarray, *, tol: float = 1e
     pts = np.asarray(points, float)
     lead = pts.shape[:-1]
     flat = pts.reshape(-1, 2)
-    finite = np.all(np.isfinite(flat), -1)
+    finite = finite_xy(flat)
     x = np.where(finite, flat[:, 0], 0.0)
     y = np.where(finite, flat[:, 1], 0.0)
     edges = convex_edges(geoms) if edges is False else edges

@@ -10,9 +10,12 @@ Boundary 0 lies towards smaller sample indices, boundary 1 towards larger ones.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+
+from .._xy import clip_index
 
 __all__ = ["Profiles", "Edges", "parabola_vertex", "simple_derivative", "gaussian_derivative",
            "derivative_kernel", "masked_argmax", "width_template", "correlate_shifts", "edges_about_centres",
@@ -150,8 +153,26 @@ def gaussian_derivative(values: np.ndarray, usable: np.ndarray, sigma: float
     win = sliding_window_view(padded, len(c), axis=-1)
     d = win @ c
     bad = pad_last(~usable, h, edge=True)
-    ok = ~np.any(sliding_window_view(bad, len(c), axis=-1), axis=-1)
+    n = values.shape[-1]
+    hit = bad[..., : n].copy()  # any unusable sample under the kernel, as shifted ORs (no short-axis reduction)
+    for i in range(1, len(c)):
+        hit |= bad[..., i: i + n]
+    ok = ~hit
     return np.where(ok, d, 0.0), ok, np.arange(values.shape[-1], dtype=float)
+
+
+def row_starts(shape: tuple[int, ...]) -> np.ndarray:
+    """(shape[:-1]) the flat index of each row's first entry in a C-ordered array of ``shape``."""
+    n = shape[-1]
+    return np.arange(0, math.prod(shape), n).reshape(shape[:-1])
+
+
+def take_last(a: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """``a[..., k]`` with one index per row (``k`` of shape ``a.shape[:-1]``, or with one more axis
+    of several indices per row): ``np.take_along_axis`` by flat indexing, without its overhead."""
+    a = np.ascontiguousarray(a)
+    base = row_starts(a.shape)
+    return a.reshape(-1)[(base if k.ndim == base.ndim else base[..., None]) + k]
 
 
 def masked_argmax(score: np.ndarray, allowed: np.ndarray, subsample: bool) -> tuple[np.ndarray, np.ndarray,
@@ -165,13 +186,12 @@ def masked_argmax(score: np.ndarray, allowed: np.ndarray, subsample: bool) -> tu
     """
     s = np.where(allowed, score, -np.inf)
     k = np.argmax(s, axis=-1)
-    val = np.take_along_axis(s, k[..., None], -1)[..., 0]
+    val = take_last(s, k)
     off = np.zeros(k.shape)
     if subsample:
         n = score.shape[-1]
-        km, kp = np.clip(k - 1, 0, n - 1), np.clip(k + 1, 0, n - 1)
-        sm = np.take_along_axis(s, km[..., None], -1)[..., 0]
-        sp = np.take_along_axis(s, kp[..., None], -1)[..., 0]
+        km, kp = clip_index(k - 1, 0, n - 1), clip_index(k + 1, 0, n - 1)
+        sm, sp = take_last(s, km), take_last(s, kp)
         inner = (k > 0) & (k < n - 1) & np.isfinite(sm) & np.isfinite(sp) & np.isfinite(val)
         off = np.where(inner, parabola_vertex(np.where(inner, sm, 0.0), np.where(inner, val, 0.0),
                                               np.where(inner, sp, 0.0)), 0.0)
@@ -213,10 +233,10 @@ def sample_at(curves: np.ndarray, pos: np.ndarray) -> np.ndarray:
     """Linear interpolation of each curve (last axis) at a fractional index per curve (clipped)."""
     n = curves.shape[-1]
     p = np.clip(pos, 0, n - 1)
-    k0 = np.clip(np.floor(p).astype(int), 0, n - 2) if n > 1 else np.zeros(p.shape, int)
+    k0 = clip_index(np.floor(p).astype(int), 0, n - 2) if n > 1 else np.zeros(p.shape, int)
     f = p - k0
-    a = np.take_along_axis(curves, k0[..., None], -1)[..., 0]
-    b = np.take_along_axis(curves, np.minimum(k0 + 1, n - 1)[..., None], -1)[..., 0]
+    a = take_last(curves, k0)
+    b = take_last(curves, np.minimum(k0 + 1, n - 1))
     return (1 - f) * a + f * b
 
 

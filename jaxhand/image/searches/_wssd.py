@@ -28,7 +28,8 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from .._config import SearchConfig
-from .._regression import _normal_equations, plls, solve_2x2
+from .._regression import _SINGULAR, _normal_equations, plls
+from .._xy import clip_index
 from ._common import (
     Edges,
     Profiles,
@@ -38,6 +39,8 @@ from ._common import (
     pad_last,
     parabola_vertex,
     per_pixel,
+    row_starts,
+    take_last,
 )
 
 __all__ = ["wssd_valley", "wssd_surface"]
@@ -62,9 +65,10 @@ def wssd_surface(values: np.ndarray, usable: np.ndarray, templates: np.ndarray, 
     S = int(max_shift)
     img = sliding_window_view(pad_last(values, S), values.shape[-1], axis=-1)  # (..., 2S+1, n): I(j + s)
     ok = sliding_window_view(pad_last(usable, S), values.shape[-1], axis=-1) & window[..., None, :]
-    diff = np.where(ok, img - templates[..., None, :], 0.0)
-    counts = ok.sum(-1)
-    W = np.where(counts > 0, (diff * diff).sum(-1) / np.maximum(counts, 1), np.inf)
+    diff = np.subtract(img, templates[..., None, :])
+    np.copyto(diff, 0.0, where=~ok)  # in place: the surface is the largest array of a frame
+    counts = np.count_nonzero(ok, axis=-1)
+    W = np.where(counts > 0, np.square(diff, out=diff).sum(-1) / np.maximum(counts, 1), np.inf)
     return W, counts, np.arange(-S, S + 1)
 
 
@@ -90,7 +94,12 @@ def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tupl
     w = curve_ok.astype(float)
     xb = np.broadcast_to(x, (L, M))
     R, _ = _normal_equations(xb, w, w)
-    li, mi = np.arange(L)[:, None], np.arange(M)[None, :]
+    # solve_2x2's arithmetic with its matrix-only terms taken out of the loop (the same bits).
+    det = R[..., 0, 0] * R[..., 1, 1] - R[..., 0, 1] * R[..., 1, 0]
+    ok = np.abs(det) > _SINGULAR * np.maximum((np.abs(R[..., 0, 0]) + np.abs(R[..., 1, 1])) ** 2, 1e-300)
+    safe = np.where(ok, det, 1.0)
+    r00, r01, r10, r11 = R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1]
+    flat, base = Wf.reshape(-1), row_starts(Wf.shape)
     # Each link's next line depends on its own displacements only, so a link whose line comes
     # back to an earlier one cycles from there on: its line after ``max_iter`` steps is known at
     # once, and the link leaves the loop (the result is the same as iterating on).
@@ -99,13 +108,15 @@ def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tupl
         if not active.any():
             break
         k = yhat + S
-        up = Wf[li, mi, np.minimum(k + 1, K - 1)]
-        down = Wf[li, mi, np.maximum(k - 1, 0)]
+        up = flat[base + np.minimum(k + 1, K - 1)]
+        down = flat[base + np.maximum(k - 1, 0)]
         g = up - down
         y = yhat - np.sign(g)
         b = w * np.where(curve_ok, y, 0.0)
-        c, ok = solve_2x2(R, np.stack([b.sum(-1), (b * xb).sum(-1)], -1))
-        new = np.clip(np.rint(c[:, 0, None] + c[:, 1, None] * x), -S, S).astype(int)
+        b0, b1 = b.sum(-1), (b * xb).sum(-1)
+        c0 = np.where(ok, (r11 * b0 - r01 * b1) / safe, 0.0)
+        c1 = np.where(ok, (r00 * b1 - r10 * b0) / safe, 0.0)
+        new = np.minimum(np.maximum(np.rint(c0[:, None] + c1[:, None] * x), -S), S).astype(int)
         step = active & ok
         changed = np.any((new != yhat) & curve_ok, axis=-1)
         yhat = np.where(step[:, None], new, yhat)
@@ -137,15 +148,14 @@ def _refine(W: np.ndarray, yhat: np.ndarray, curve_ok: np.ndarray, S: int, subsa
     idx = yhat + S
     near = idx[..., None] + np.arange(-2, 3)  # the five entries around the rounded line
     inside = (near >= 0) & (near < K)
-    vals = np.where(inside, np.take_along_axis(W, np.clip(near, 0, K - 1), -1), np.inf)
+    vals = np.where(inside, take_last(W, clip_index(near, 0, K - 1)), np.inf)
     j = np.argmin(vals, -1)
-    k = np.clip(idx + j - 2, 0, K - 1)
-    wmin = np.take_along_axis(W, k[..., None], -1)[..., 0]
+    k = clip_index(idx + j - 2, 0, K - 1)
+    wmin = take_last(W, k)
     y = (k - S).astype(float)
     if subsample:
-        km, kp = np.clip(k - 1, 0, K - 1), np.clip(k + 1, 0, K - 1)
-        wm = np.take_along_axis(W, km[..., None], -1)[..., 0]
-        wp = np.take_along_axis(W, kp[..., None], -1)[..., 0]
+        km, kp = clip_index(k - 1, 0, K - 1), clip_index(k + 1, 0, K - 1)
+        wm, wp = take_last(W, km), take_last(W, kp)
         inner = (k > 0) & (k < K - 1) & np.isfinite(wm) & np.isfinite(wp) & np.isfinite(wmin)
         y = y + np.where(inner, parabola_vertex(np.where(inner, wm, 0.0), np.where(inner, wmin, 0.0),
                                                 np.where(inner, wp, 0.0)), 0.0)
@@ -166,8 +176,8 @@ def _snap_to_edges(profiles: Profiles, pos: np.ndarray, window: np.ndarray, conf
     out = pos.copy()
     for side, inward in ((0, 1.0), (1, -1.0)):
         p = pos[..., side]
-        inside = np.clip(np.rint(p + inward), 0, n - 1).astype(int)
-        seen = np.take_along_axis(window, inside[..., None], -1)[..., 0] & clear[..., side]
+        inside = clip_index(np.rint(p + inward).astype(int), 0, n - 1)
+        seen = take_last(window, inside) & clear[..., side]
         score = (config.sign if side == 0 else -config.sign) * d
         allowed = d_ok & (np.abs(at - p[..., None]) <= config.snap * profiles.radius)
         k, val, off = masked_argmax(score, allowed, config.subsample)
