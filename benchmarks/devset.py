@@ -33,13 +33,16 @@ SEQUENCES = ("open_close", "index_over_middle", "thumb_opposition", "fast_spread
 #: Named settings: changes to the default TrackConfig (as in TrackConfig.merged).
 SETTINGS = {
     "default": {},
-    "temporal": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0}},
-    "temporal+dip": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "dip_pip_weight": 10.0}},
-    "info": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "information_ratio": 1.0}},
-    "info+dip": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "information_ratio": 1.0,
-                           "dip_pip_weight": 10.0}},
-    "info+dip+solve": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "information_ratio": 1.0,
-                                 "dip_pip_weight": 10.0}, "filter": {"report_solve": True}},
+    # a fixed-sigma temporal prior around the g-h-k prediction, the g-h-k update reported
+    "temporal5+dip": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "dip_pip_weight": 10.0}},
+    # the solve with the prior reported (the filter only predicts)
+    "temporal10+solve": {"prior": {"temporal_sigma_deg": 10.0, "temporal_sigma_mm": 10.0},
+                         "filter": {"report_solve": True}},
+    "temporal10+dip+solve": {"prior": {"temporal_sigma_deg": 10.0, "temporal_sigma_mm": 10.0, "dip_pip_weight": 10.0},
+                             "filter": {"report_solve": True}},
+    # information-weighted (issue 13 item 5)
+    "info0.1+solve": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "information_ratio": 0.1},
+                      "filter": {"report_solve": True}},
 }
 
 

@@ -114,7 +114,7 @@ class _Priors(eqx.Module):
 
     def at(self, model: Model, rig: tuple, feats: tuple, q_pred, q_start, fractions) -> tuple:
         """The priors of one frame: the temporal prior around ``q_pred``, information-weighted by
-        the (gated) features at ``q_start`` when :attr:`information_ratio` is set."""
+        the features (with the front end's weights) at ``q_start`` when :attr:`information_ratio` is set."""
         if self.temporal_weight is None:
             return self.fixed
         weight = self.temporal_weight
@@ -186,8 +186,9 @@ def frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, q_
     features' value check."""
     q_pred = ghk.x
     fractions = fit_config.link_fractions
-    frame_priors = () if priors is None else priors.at(
-        model, rig, gate(model, rig, feats, q_start, fractions, numbers.gate_scale_px), q_pred, q_start, fractions)
+    # the information of the front end's own weights: the gate would shrink it wherever the
+    # prediction is off, and so hold the solve back exactly where it has to move
+    frame_priors = () if priors is None else priors.at(model, rig, feats, q_pred, q_start, fractions)
     result = robust_solve(model, rig, feats, q_start, build, fit_config, numbers.robust_scale_px, passes,
                           numbers.gate_scale_px, frame_priors)
     ok = jnp.all(jnp.isfinite(result.q)) & jnp.isfinite(result.cost)
