@@ -98,7 +98,7 @@ def test_priors_off_is_the_program_without_priors_and_rms_counts_image_residuals
         r = np.asarray(jh.residuals.residuals(jnp.asarray(rep.q_solved), args))
         assert rep.rms_px == pytest.approx(np.sqrt(np.sum(r * r) / n_res), rel=1e-6)
         assert rep.cost == pytest.approx(0.5 * np.sum(r * r), rel=1e-6)
-        np.testing.assert_allclose(rep.q_solved, rep.q_pred, atol=1e-6)
+        np.testing.assert_allclose(rep.q_solved, rep.q_pred, atol=1e-5)
 
 
 def test_no_recompile_across_frames_nor_for_new_prior_numbers(problem):
