@@ -28,6 +28,7 @@ from .track import (  # noqa: E402
     FilterConfig,
     ImageFrontEnd,
     LossConfig,
+    PriorConfig,
     RobustConfig,
     StepReport,
     TrackConfig,
@@ -51,7 +52,7 @@ __all__ = [
     "fit", "fit_batch", "FitConfig", "FitResult", "Status", "SOLVERS",
     "extract_features", "capture_templates", "ImageConfig", "ImageState",
     "Features", "features_from_pose",
-    "Tracker", "TrackState", "StepReport", "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig",
+    "Tracker", "TrackState", "StepReport", "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig",
     "load_track_config", "save_track_config", "AbstractFrontEnd", "ImageFrontEnd", "ExactFrontEnd",
     "track_sequence", "accuracy_summary",
 ]

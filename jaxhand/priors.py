@@ -24,7 +24,7 @@ from ._errors import InputError
 from .model import Model
 
 __all__ = ["DipPipCoupling", "SoftLimits", "TemporalPrior", "dip_pip_coupling", "soft_limits", "temporal_prior",
-           "stack_priors"]
+           "stack_priors", "temporal_weight", "information_weight"]
 
 #: Default DIP/PIP flexion ratio (DIP about 2/3 of PIP).
 DIP_PIP_RATIO = 2.0 / 3.0
@@ -162,23 +162,48 @@ def stack_priors(priors, q: Float[Array, " nq"]) -> Float[Array, " r"]:
 
 
 class TemporalPrior(eqx.Module):
-    """A Gaussian prior around a predicted state: ``r = weight * (q - q_pred)`` per q entry.
+    """A Gaussian prior around a predicted state: ``r = weight * (q - q_pred)`` per q entry, or
+    ``r = weight @ (q - q_pred)`` with a square weight matrix (a full information square root).
 
-    Traced: ``q_pred`` (q units) and ``weight`` (1 / sigma per entry, 0 where there is no prior),
-    so a tracker builds one per frame without recompiling. Weighted by how poorly each joint was
-    seen it keeps unobserved joints at the prediction and leaves observed ones to the images
-    (thesis ch. 7: a compromise between the solve and the prediction).
+    Traced: ``q_pred`` (q units) and ``weight`` ((nq,): 1 / sigma per entry, 0 where there is no
+    prior; or (nq, nq), e.g. :func:`information_weight`), so a tracker builds one per frame
+    without recompiling (whether the weight is a vector or a matrix is static). Weighted by how
+    poorly each direction was seen it keeps unobserved joints at the prediction and leaves
+    observed ones to the images (thesis ch. 7: a compromise between the solve and the prediction).
     """
 
     q_pred: Float[Array, " nq"] = eqx.field(converter=jnp.asarray)
-    weight: Float[Array, " nq"] = eqx.field(converter=jnp.asarray)
+    weight: Float[Array, " nq"] | Float[Array, "nq nq"] = eqx.field(converter=jnp.asarray)
 
     def __check_init__(self):
-        if self.q_pred.shape != self.weight.shape or self.q_pred.ndim != 1:
-            raise ValueError("TemporalPrior: q_pred and weight need the same shape (nq,)")
+        n = self.q_pred.shape[0] if self.q_pred.ndim == 1 else -1
+        if n < 0 or self.weight.shape not in ((n,), (n, n)):
+            raise ValueError("TemporalPrior: q_pred needs shape (nq,) and weight (nq,) or (nq, nq)")
 
     def __call__(self, q: Float[Array, " nq"]) -> Float[Array, " nq"]:
-        return self.weight * (q - self.q_pred)
+        d = q - self.q_pred
+        return self.weight @ d if self.weight.ndim == 2 else self.weight * d
+
+
+def information_weight(weight: Float[Array, " nq"], information: Float[Array, "nq nq"], ratio
+                       ) -> Float[Array, "nq nq"]:
+    """The weight matrix of an information-weighted :class:`TemporalPrior` (issue 13 item 5).
+
+    With ``D = diag(weight)`` (1 / sigma per entry, 0 for none) and the image information
+    ``Lambda = J^T J`` of the solve (px^2 per unit of q squared; the prior's residual unit is one
+    px), ``L = S Lambda S`` is that information in units of the prior's (``S = D^-1`` where the
+    weight is not 0, else 0). The prior's information becomes ``D f(L) D`` with
+    ``f(L) = ratio (ratio I + L)^-1``: full (``1/sigma^2``) along directions the images do not
+    see, falling as ``ratio / l`` along those they see with information ``l`` (so the solve there
+    follows the images and a well-seen joint is not held back). Returns the symmetric square root
+    ``f(L)^(1/2) D`` (so ``|W d|^2 = d^T D f(L) D d``). ``ratio`` > 0, unitless.
+    """
+    weight = jnp.asarray(weight)
+    s = jnp.where(weight > 0, 1.0 / jnp.where(weight > 0, weight, 1.0), 0.0)
+    lam = 0.5 * (information + information.T) * s[:, None] * s[None, :]
+    eig, vec = jnp.linalg.eigh(lam)
+    root = (vec * jnp.sqrt(ratio / (ratio + jnp.maximum(eig, 0.0)))) @ vec.T
+    return root * weight[None, :]
 
 
 def temporal_prior(model: Model, q_pred, *, sigma_deg: float = 10.0, sigma_mm: float = 20.0) -> TemporalPrior:
@@ -190,6 +215,14 @@ def temporal_prior(model: Model, q_pred, *, sigma_deg: float = 10.0, sigma_mm: f
     """
     if not (sigma_deg > 0 and sigma_mm > 0):
         raise InputError(f"temporal prior: sigmas must be > 0, got {sigma_deg} deg, {sigma_mm} mm")
+    q_pred = jnp.asarray(q_pred)
+    return TemporalPrior(q_pred=q_pred, weight=jnp.asarray(temporal_weight(model, sigma_deg, sigma_mm), q_pred.dtype))
+
+
+def temporal_weight(model: Model, sigma_deg: float, sigma_mm: float) -> np.ndarray:
+    """Per q entry ``1 / sigma``: ``1 / radians(sigma_deg)`` for angles, ``1 / sigma_mm`` for
+    lengths, 0 for a free base's quaternion; a sigma of 0 (or None) gives that kind no prior."""
     kinds = np.asarray(model.q_kinds)
-    weight = np.where(kinds == "angle", 1.0 / np.radians(sigma_deg), np.where(kinds == "length", 1.0 / sigma_mm, 0.0))
-    return TemporalPrior(q_pred=jnp.asarray(q_pred), weight=jnp.asarray(weight, dtype=jnp.asarray(q_pred).dtype))
+    w_angle = 1.0 / np.radians(sigma_deg) if sigma_deg else 0.0
+    w_length = 1.0 / sigma_mm if sigma_mm else 0.0
+    return np.where(kinds == "angle", w_angle, np.where(kinds == "length", w_length, 0.0))

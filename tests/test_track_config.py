@@ -9,6 +9,7 @@ import jaxhand as jh
 from jaxhand.track import (
     FilterConfig,
     LossConfig,
+    PriorConfig,
     RobustConfig,
     TrackConfig,
     config_from_dict,
@@ -38,9 +39,12 @@ def _odd_config():
     return TrackConfig(solver="lm", fit=jh.FitConfig(max_steps=7, jacobian="autodiff", link_fractions=(0.1, 1 / 3, 0.9),
                                                      xtol=1e-13, divergence_factor=np.inf),
                        image=jh.ImageConfig(method="gaussian", reacquire_deg=(15.0, 30.5), width_gain=0.1),
-                       filter=FilterConfig(theta=0.1 + 0.2, theta_rate_hz=None, enabled=False),
+                       filter=FilterConfig(theta=0.1 + 0.2, theta_rate_hz=None, enabled=False, report_solve=True),
                        robust=RobustConfig(passes=0, scale_px=1e-3, gate_scale_px=0.0),
-                       loss=LossConfig(min_valid_share=2 / 3, hold=False), reextract=3, refresh_templates=False)
+                       loss=LossConfig(min_valid_share=2 / 3, hold=False),
+                       prior=PriorConfig(temporal_sigma_deg=1 / 3, temporal_sigma_mm=None, information_ratio=0.1 + 0.2,
+                                         dip_pip_weight=10, soft_limit_weight=1e-300, soft_limit_margin_deg=2.5),
+                       reextract=3, refresh_templates=False)
 
 
 def test_tracker_defaults_are_those_of_the_benchmarks():
@@ -50,6 +54,7 @@ def test_tracker_defaults_are_those_of_the_benchmarks():
     assert (c.robust.passes, c.robust.scale_px, c.robust.gate_scale_px) == (2, 2.0, 2.0)
     assert (c.loss.rms_scale_px, c.loss.min_valid_share, c.loss.max_rms_px, c.loss.hold) == (2.0, 0.15, 6.0, True)
     assert (c.reextract, c.refresh_templates) == (1, True)
+    assert c.prior == PriorConfig() and not c.prior.temporal and not c.filter.report_solve   # priors off
     assert c.image == jh.ImageConfig()
     # jaxhand.fit keeps its own defaults
     assert (jh.FitConfig().max_steps, jh.FitConfig().jacobian) == (50, "autodiff")
@@ -92,6 +97,12 @@ def test_missing_keys_keep_their_defaults_and_merged_applies_changes():
     ({"reextract": -1}, r"reextract: expected an integer >= 0"),
     ({"loss": {"hold": 1}}, r"loss\.hold: expected true or false"),
     ({"filter": 3}, r"filter: expected a table"),
+    ({"prior": {"temporal_sigma_deg": -1.0}}, r"prior\.temporal_sigma_deg: expected a finite number >= 0"),
+    ({"prior": {"dip_pip_weight": float("inf")}}, r"prior\.dip_pip_weight: expected a finite number >= 0"),
+    ({"prior": {"information_ratio": 1.0}}, r"prior\.information_ratio: weighs the temporal prior"),
+    ({"prior": {"temporal_sigma_dg": 5.0}},
+     r"prior\.temporal_sigma_dg: unknown key; did you mean 'temporal_sigma_deg'"),
+    ({"filter": {"report_solve": 1}}, r"filter\.report_solve: expected true or false"),
 ])
 def test_bad_keys_and_values_name_the_field(data, message):
     with pytest.raises(jh.InputError, match=message):

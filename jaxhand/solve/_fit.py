@@ -56,15 +56,17 @@ def solver_named(name: str) -> str:
 
 
 def fit_traced(model: Model, rig: tuple, feats: tuple, q0, build: _Builder, config: FitConfig,
-               rank_test=True) -> FitResult:
+               rank_test=True, priors: tuple = ()) -> FitResult:
     """The solve of :func:`fit` for traced use (no validation, not jitted): ``build`` and
     ``config`` come from :func:`solver_program`; ``rank_test`` (a bool, or traced) runs the SVD
-    of the status's rank test."""
+    of the status's rank test; ``priors`` are stacked under the image residuals
+    (:attr:`~jaxhand.residuals.ResidualArgs.priors`; the result's cost then includes theirs)."""
     space = StateSpace.of(model)
     q0 = space.normalize(q0)
     if build is make_bounded_trust_region:   # every iterate inside the limits, the start included
         q0 = space.interior(q0)
-    args = ResidualArgs(model=model, cameras=rig, features=feats, fractions=config.link_fractions)
+    args = ResidualArgs(model=model, cameras=rig, features=feats, fractions=config.link_fractions,
+                        priors=tuple(priors))
     jac = residuals_and_jacobian if config.jacobian == "geometric" else None
     return solve_least_squares(residuals, build(config, space), q0, args, space, config, jac=jac,
                                rank_test=rank_test)

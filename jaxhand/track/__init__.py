@@ -1,6 +1,6 @@
 """Tracking: a model through frames, one front end, one compiled solve-and-filter step per frame.
 
-- :class:`TrackConfig` (with :class:`FilterConfig`, :class:`RobustConfig`, :class:`LossConfig`,
+- :class:`TrackConfig` (with :class:`FilterConfig`, :class:`RobustConfig`, :class:`LossConfig`, :class:`PriorConfig`,
   a :class:`~jaxhand.FitConfig` and an :class:`~jaxhand.ImageConfig`): every setting of a run,
   saved to and loaded from TOML (:func:`save_track_config`, :func:`load_track_config`);
 - :class:`AbstractFrontEnd` and its final implementations :class:`ImageFrontEnd` (the image
@@ -15,6 +15,7 @@ from ._config import (
     TRACK_CONFIG_VERSION,
     FilterConfig,
     LossConfig,
+    PriorConfig,
     RobustConfig,
     TrackConfig,
     config_from_dict,
@@ -29,7 +30,7 @@ from ._sequence import accuracy_summary, track_sequence
 from ._tracker import StepReport, Tracker, TrackState
 
 __all__ = [
-    "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "TRACK_CONFIG_VERSION",
+    "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "TRACK_CONFIG_VERSION",
     "config_to_dict", "config_from_dict", "config_to_toml", "save_track_config", "load_track_config",
     "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd",
     "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary",

@@ -2,10 +2,12 @@
 
 Per frame the host makes one call and one fetch. :func:`frame_step` runs, traced once per model
 structure and settings: the gate and the robust solve (:func:`robust_solve`, its passes in one
-``lax.fori_loop``), the frame's score (:func:`~jaxhand.track.frame_score`), the g-h-k update and
-prediction (held still on a lost frame when :attr:`LossConfig.hold`), and the features' value
-checks (:func:`jaxhand.features.feature_value_checks`), so bad features are found without a
-host-side pass over them.
+``lax.fori_loop``) with the pose priors of :class:`~jaxhand.track.PriorConfig` (the temporal
+one around the frame's prediction, a traced input), the frame's score of the image residuals
+(:func:`~jaxhand.track.frame_score`), the g-h-k update and prediction (held still on a lost
+frame when :attr:`LossConfig.hold`), and the features' value checks
+(:func:`jaxhand.features.feature_value_checks`), so bad features are found without a host-side
+pass over them.
 
 Calling it cheaply from the host: :class:`FrameProgram` splits its constant arguments (model,
 cameras, solver, settings) once into array leaves and a :class:`_Static` handle on the rest,
@@ -21,18 +23,21 @@ import functools
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from ..features import Features, feature_value_checks
 from ..filter import GHKState, ghk_predict, ghk_update
 from ..kinematics import clip_q
 from ..model import Model
-from ..residuals import feature_distances
+from ..priors import TemporalPrior, dip_pip_coupling, information_weight, soft_limits, stack_priors, temporal_weight
+from ..residuals import ResidualArgs, feature_distances, residuals_and_jacobian
 from ..solve.internal import fit_traced, solver_program
 from ._config import TrackConfig
 from ._score import frame_score
 
-__all__ = ["FrameProgram", "frame_step", "robust_solve", "reweight", "filter_update", "SCALARS", "FEATURE_FIELDS"]
+__all__ = ["FrameProgram", "frame_step", "robust_solve", "gate", "reweight", "filter_update", "SCALARS",
+           "FEATURE_FIELDS"]
 
 #: The scalars of a :class:`_StepOut`, in the order :func:`_frame_jit` packs them.
 SCALARS = ("solved_ok", "cost", "iterations", "status", "rms_px", "valid_share", "confidence", "lost",
@@ -41,14 +46,18 @@ SCALARS = ("solved_ok", "cost", "iterations", "status", "rms_px", "valid_share",
 FEATURE_FIELDS = ("lines", "line_valid", "line_weight", "tips", "tip_valid", "tip_weight")
 
 
-def filter_update(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: bool
+def filter_update(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: bool, report_solve: bool = False
                   ) -> tuple[Float[Array, " nq"], GHKState]:
-    """g-h-k update with the measured q, then the prediction for the next frame (both clipped)."""
+    """g-h-k update with the measured q, then the prediction for the next frame (both clipped).
+    With ``report_solve`` the estimate is the measurement itself; the filter's velocity and
+    acceleration still carry the prediction from it."""
     if model.base_kind == "free":  # keep the measured quaternion in the prediction's hemisphere
         flip = jnp.sign(jnp.dot(q_meas[:4], ghk.x[:4]))
         q_meas = q_meas.at[:4].multiply(jnp.where(flip == 0, 1.0, flip))
     if use_filter:
         updated = ghk_update(ghk, q_meas, theta, dt_s)
+        if report_solve:
+            updated = GHKState(x=q_meas, v=updated.v, a=updated.a)
     else:
         updated = GHKState(x=q_meas, v=jnp.zeros_like(q_meas), a=jnp.zeros_like(q_meas))
     filtered = clip_q(model, updated.x)
@@ -80,6 +89,42 @@ class _StepNumbers(eqx.Module):
     max_rms_px: Float[Array, ""]
 
 
+class _Priors(eqx.Module):
+    """The priors of :class:`~jaxhand.track.PriorConfig`, built once: the fixed ones (DIP-PIP,
+    soft limits) and the temporal prior's per-entry weight (its ``q_pred`` is the frame's
+    prediction). Which are present is static; their numbers are traced."""
+
+    fixed: tuple
+    temporal_weight: Float[Array, " nq"] | None
+    information_ratio: Float[Array, ""] | None
+
+    @staticmethod
+    def of(model: Model, config) -> _Priors:
+        dtype = model.q_lower.dtype
+        fixed = []
+        if config.dip_pip_weight:
+            fixed.append(dip_pip_coupling(model, weight=config.dip_pip_weight))
+        if config.soft_limit_weight:
+            fixed.append(soft_limits(model, weight=config.soft_limit_weight,
+                                     margin=float(np.radians(config.soft_limit_margin_deg))))
+        weight = (jnp.asarray(temporal_weight(model, config.temporal_sigma_deg, config.temporal_sigma_mm), dtype)
+                  if config.temporal else None)
+        ratio = jnp.asarray(config.information_ratio, dtype) if config.information_ratio else None
+        return _Priors(fixed=tuple(fixed), temporal_weight=weight, information_ratio=ratio)
+
+    def at(self, model: Model, rig: tuple, feats: tuple, q_pred, q_start, fractions) -> tuple:
+        """The priors of one frame: the temporal prior around ``q_pred``, information-weighted by
+        the features (with the front end's weights) at ``q_start`` when :attr:`information_ratio` is set."""
+        if self.temporal_weight is None:
+            return self.fixed
+        weight = self.temporal_weight
+        if self.information_ratio is not None:
+            args = ResidualArgs(model=model, cameras=rig, features=feats, fractions=fractions)
+            _, J = residuals_and_jacobian(q_start, args)
+            weight = information_weight(weight, J.T @ J, self.information_ratio)
+        return (TemporalPrior(q_pred=q_pred, weight=weight),) + self.fixed
+
+
 class _StepOut(eqx.Module):
     """One frame's solve, score and filter. ``q_solved`` is the measurement the filter took (the
     prediction when the solve was not finite); ``status`` the last solve's Status code."""
@@ -98,52 +143,71 @@ class _StepOut(eqx.Module):
     features_ok: Bool[Array, ""]
 
 
+def gate(model: Model, rig: tuple, feats: tuple, q0, fractions, gate_px) -> tuple:
+    """The features weighed by their distances at ``q0`` with the Cauchy scale ``gate_px``
+    (:func:`reweight`; 0 keeps the original weights): what the first solve of a frame uses."""
+    gated = reweight(feats, feature_distances(model, rig, feats, q0, fractions),
+                     jnp.where(gate_px > 0, gate_px, 1.0))   # Guard: scale 0 means no gate
+    return jax.tree_util.tree_map(lambda a, b: jnp.where(gate_px > 0, b, a), feats, gated)
+
+
 def robust_solve(model: Model, rig: tuple, feats: tuple, q0, build, fit_config, scale_px, passes: int,
-                 gate_px=0.0):
+                 gate_px=0.0, priors: tuple = ()):
     """Solve, then ``passes`` times reweight every feature by its distance at the last solution
     (Cauchy weights of the *original* weights, :func:`reweight`) and solve again from there.
 
     The passes run in one ``lax.fori_loop`` so the solver is traced (and compiled) once. Pass 0
-    weighs the features by their distances at ``q0`` with the scale ``gate_px`` (0 keeps the
-    original weights). Only the last pass runs the rank test (an SVD) of its status.
+    weighs the features by their distances at ``q0`` with the scale ``gate_px`` (:func:`gate`).
+    Only the last pass runs the rank test (an SVD) of its status. ``priors`` are stacked under
+    the image residuals of every pass (the result's cost includes them).
     """
     fractions = fit_config.link_fractions
-    gated = reweight(feats, feature_distances(model, rig, feats, q0, fractions),
-                     jnp.where(gate_px > 0, gate_px, 1.0))   # Guard: scale 0 means no gate
-    first = jax.tree_util.tree_map(lambda a, b: jnp.where(gate_px > 0, b, a), feats, gated)
+    first = gate(model, rig, feats, q0, fractions, gate_px)
 
     def one_pass(i, result):
         weighted = reweight(feats, feature_distances(model, rig, feats, result.q, fractions), scale_px)
         weighted = jax.tree_util.tree_map(lambda a, b: jnp.where(i == 0, a, b), first, weighted)
-        return fit_traced(model, rig, weighted, result.q, build, fit_config, rank_test=i == passes)
+        return fit_traced(model, rig, weighted, result.q, build, fit_config, rank_test=i == passes, priors=priors)
 
-    start = jax.eval_shape(lambda: fit_traced(model, rig, feats, q0, build, fit_config))
+    start = jax.eval_shape(lambda: fit_traced(model, rig, feats, q0, build, fit_config, priors=priors))
     start = jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), start)
     start = eqx.tree_at(lambda r: r.q, start, q0)
     return jax.lax.fori_loop(0, passes + 1, one_pass, start)
 
 
 def frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, q_start, build, fit_config,
-               numbers: _StepNumbers, passes: int, use_filter: bool, hold: bool) -> _StepOut:
+               numbers: _StepNumbers, passes: int, use_filter: bool, hold: bool, priors: _Priors | None = None,
+               report_solve: bool = False) -> _StepOut:
     """One frame after feature extraction: the robust solve from ``q_start`` (the prediction
-    ``ghk.x``, or an earlier solve of this frame that the features were searched around), the
-    score and loss flag, the g-h-k update and prediction (with ``hold``, a lost frame holds
-    ``q_last`` still), and the features' value check."""
+    ``ghk.x``, or an earlier solve of this frame that the features were searched around) with
+    the ``priors`` (the temporal one around ``ghk.x``), the score and loss flag (of the image
+    residuals alone), the g-h-k update and prediction (with ``report_solve`` the solve is
+    reported and predicted from; with ``hold``, a lost frame holds ``q_last`` still), and the
+    features' value check."""
     q_pred = ghk.x
+    fractions = fit_config.link_fractions
+    # the information of the front end's own weights: the gate would shrink it wherever the
+    # prediction is off, and so hold the solve back exactly where it has to move
+    frame_priors = () if priors is None else priors.at(model, rig, feats, q_pred, q_start, fractions)
     result = robust_solve(model, rig, feats, q_start, build, fit_config, numbers.robust_scale_px, passes,
-                          numbers.gate_scale_px)
+                          numbers.gate_scale_px, frame_priors)
     ok = jnp.all(jnp.isfinite(result.q)) & jnp.isfinite(result.cost)
     q_meas = jnp.where(ok, result.q, q_pred)
+    cost = result.cost
+    if frame_priors:   # the frame is judged by its image residuals alone
+        r_prior = stack_priors(frame_priors, result.q)
+        cost = jnp.maximum(cost - 0.5 * jnp.sum(r_prior * r_prior), 0.0)
     n_tips = sum(jnp.sum(f.tip_valid) for f in feats)
     n_lines = sum(jnp.sum(f.line_valid) for f in feats)
     dtype = result.cost.dtype
     n_res = jnp.maximum(1, 2 * n_tips + 2 * n_lines).astype(dtype)
     # Guard: the unused branch of a failed solve must stay finite.
-    rms = jnp.where(ok, jnp.sqrt(2.0 * jnp.where(ok, result.cost, 0.0) / n_res), jnp.inf)
+    rms = jnp.where(ok, jnp.sqrt(2.0 * jnp.where(ok, cost, 0.0) / n_res), jnp.inf)
     total = sum(f.line_valid.shape[-1] + f.tip_valid.shape[-1] for f in feats)
     share = (n_tips + n_lines).astype(dtype) / max(total, 1)
     conf, lost = frame_score(rms, share, numbers.rms_scale_px, numbers.min_valid_share, numbers.max_rms_px)
-    filtered, ghk_next = filter_update(model, ghk, q_meas, numbers.theta, numbers.dt_s, use_filter)
+    filtered, ghk_next = filter_update(model, ghk, q_meas, numbers.theta, numbers.dt_s, use_filter,
+                                       report_solve)
     if hold:
         # A lost frame's solve fits stray features: hold the last good estimate still (zero
         # velocity and acceleration) instead of letting the filter extrapolate it.
@@ -151,7 +215,7 @@ def frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, q_
         ghk_next = GHKState(x=jnp.where(lost, q_last, ghk_next.x), v=jnp.where(lost, 0.0, ghk_next.v),
                             a=jnp.where(lost, 0.0, ghk_next.a))
     features_ok = functools.reduce(jnp.logical_and, [c for f in feats for c in feature_value_checks(f)])
-    return _StepOut(q_solved=q_meas, solved_ok=ok, cost=result.cost, iterations=result.iterations,
+    return _StepOut(q_solved=q_meas, solved_ok=ok, cost=cost, iterations=result.iterations,
                     status=result.status._value, q_filtered=filtered, ghk=ghk_next, rms_px=rms,
                     valid_share=share, confidence=conf, lost=lost, features_ok=features_ok)
 
@@ -183,9 +247,9 @@ def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last,
     exact in float64), and the next filter state (x, v, a)."""
     treedef, static_half = static.value
     parts = eqx.combine(jax.tree_util.tree_unflatten(treedef, consts), static_half)
-    model, rig, build, fit_config, numbers, passes, use_filter, hold = parts
+    model, rig, build, fit_config, numbers, passes, use_filter, hold, priors, report_solve = parts
     out = frame_step(model, rig, tuple(Features(*f) for f in feats), GHKState(*ghk), q_last, q_start, build,
-                     fit_config, numbers, passes, use_filter, hold)
+                     fit_config, numbers, passes, use_filter, hold, priors, report_solve)
     dtype = out.q_solved.dtype
     scalars = jnp.stack([jnp.asarray(getattr(out, name), dtype) for name in SCALARS])
     return (out.q_solved, out.q_filtered, scalars), (out.ghk.x, out.ghk.v, out.ghk.a)
@@ -205,8 +269,10 @@ class FrameProgram:
         numbers = _StepNumbers(*(jnp.asarray(float(v)) for v in (
             theta, dt_s, config.robust.scale_px, config.robust.gate_scale_px, config.loss.rms_scale_px,
             config.loss.min_valid_share, config.loss.max_rms_px)))
+        priors = _Priors.of(model, config.prior)
         consts, static = eqx.partition((model, rig, build, fit_config, numbers, config.robust.passes,
-                                        config.filter.enabled, config.loss.hold), eqx.is_array)
+                                        config.filter.enabled, config.loss.hold, priors,
+                                        config.filter.report_solve), eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(consts)
         self._consts, self._static = tuple(leaves), _Static((treedef, static))
 

@@ -27,7 +27,8 @@ from ..image import ImageConfig
 from ..solve import FitConfig, solver_named
 from ..solve.internal import check_config
 
-__all__ = ["TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "config_to_dict", "config_from_dict",
+__all__ = ["TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "config_to_dict",
+           "config_from_dict",
            "save_track_config", "load_track_config", "config_to_toml", "TRACK_CONFIG_VERSION"]
 
 #: The ``format_version`` written into (and required of) saved tracking configs.
@@ -49,16 +50,23 @@ class FilterConfig:
         theta_rate_hz: host, Hz. The frame rate at which ``theta`` holds; the tracker uses
             ``theta ** (theta_rate_hz * dt_s)`` so the filter forgets the same share per second at
             any rate. 0 (or None): ``theta`` is the discount per frame at any rate.
+        report_solve: static. Report the solve (with :class:`PriorConfig`'s priors, the temporal
+            prior being the compromise between solve and prediction) as the estimate and predict
+            from it with the filter's velocity and acceleration; False: report the g-h-k update
+            (the thesis).
     """
 
     enabled: bool = True
     theta: float = 0.85
     theta_rate_hz: float = 25.0
+    report_solve: bool = False
 
     def __post_init__(self):
         if self.theta_rate_hz is None:
             object.__setattr__(self, "theta_rate_hz", 0.0)
         _need(isinstance(self.enabled, bool), "filter.enabled", f"expected true or false, got {self.enabled!r}")
+        _need(isinstance(self.report_solve, bool), "filter.report_solve",
+              f"expected true or false, got {self.report_solve!r}")
         _need(0.0 <= self.theta <= 1.0, "filter.theta", f"theta must lie in [0, 1], got {self.theta}")
         _need(self.theta_rate_hz >= 0, "filter.theta_rate_hz",
               f"theta_rate_hz must be > 0 Hz (or 0: per frame), got {self.theta_rate_hz}")
@@ -115,6 +123,53 @@ class LossConfig:
         _need(isinstance(self.hold, bool), "loss.hold", f"expected true or false, got {self.hold!r}")
 
 
+def _off(value) -> float:
+    return 0.0 if value is None else value
+
+
+@dataclasses.dataclass(frozen=True)
+class PriorConfig:
+    """Pose priors stacked under the image residuals of every solve (:mod:`jaxhand.priors`).
+
+    Each prior's residual unit counts as one px of image residual. A value of 0 (or None) turns a
+    prior off: whether each prior is on is static, its numbers are traced.
+
+    Attributes:
+        temporal_sigma_deg: traced, deg. Sigma of the temporal prior of each joint angle around
+            the frame's prediction (0: none).
+        temporal_sigma_mm: traced, mm. The same for length entries (base translation, prismatic).
+        information_ratio: traced, unitless. Weigh the temporal prior by the image information of
+            the frame's features at the start of the solve (:func:`~jaxhand.priors.information_weight`):
+            along a direction in q that the images see with ``l`` times the prior's information its
+            weight is ``ratio / (ratio + l)`` of the full one (0: the fixed sigmas everywhere).
+        dip_pip_weight: traced, 1/rad. DIP-PIP coupling, ``w (q_dip - 2/3 q_pip)`` per finger (0: none).
+        soft_limit_weight: traced, 1/rad. Soft joint limits beyond ``soft_limit_margin_deg`` (0: none;
+            the ``bounded`` solver keeps every iterate inside the limits anyway).
+        soft_limit_margin_deg: traced, deg. Dead zone beyond each limit before the soft limit acts.
+    """
+
+    temporal_sigma_deg: float = 0.0
+    temporal_sigma_mm: float = 0.0
+    information_ratio: float = 0.0
+    dip_pip_weight: float = 0.0
+    soft_limit_weight: float = 0.0
+    soft_limit_margin_deg: float = 0.0
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            value = _off(getattr(self, f.name))
+            _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                  and value >= 0, f"prior.{f.name}", f"expected a finite number >= 0 (0: off), got {value!r}")
+            object.__setattr__(self, f.name, float(value))
+        _need(not self.information_ratio or self.temporal_sigma_deg or self.temporal_sigma_mm,
+              "prior.information_ratio", "weighs the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
+
+    @property
+    def temporal(self) -> bool:
+        """Whether there is a temporal prior (static)."""
+        return bool(self.temporal_sigma_deg or self.temporal_sigma_mm)
+
+
 def _tracker_fit() -> FitConfig:
     # The tracker's solve: 20 iterations per frame and the geometric Jacobian (several times
     # cheaper on the CPU than autodiff, equal to rounding; benchmarks/README.md).
@@ -135,6 +190,7 @@ class TrackConfig:
         filter: the g-h-k filter (:class:`FilterConfig`).
         robust: the gate and robust passes (:class:`RobustConfig`).
         loss: the frame's score and the loss rule (:class:`LossConfig`).
+        prior: pose priors in the solve (:class:`PriorConfig`; all off by default).
         reextract: host. Times the front end searches again around the solved pose, then the
             frame is solved again from there (for front ends whose ``reextracts`` is true).
         refresh_templates: host. After a frame that is not lost, let the front end refresh its
@@ -147,13 +203,14 @@ class TrackConfig:
     filter: FilterConfig = dataclasses.field(default_factory=FilterConfig)
     robust: RobustConfig = dataclasses.field(default_factory=RobustConfig)
     loss: LossConfig = dataclasses.field(default_factory=LossConfig)
+    prior: PriorConfig = dataclasses.field(default_factory=PriorConfig)
     reextract: int = 1
     refresh_templates: bool = True
 
     def __post_init__(self):
         solver_named(self.solver)
         for name, kind in (("fit", FitConfig), ("image", ImageConfig), ("filter", FilterConfig),
-                           ("robust", RobustConfig), ("loss", LossConfig)):
+                           ("robust", RobustConfig), ("loss", LossConfig), ("prior", PriorConfig)):
             _need(isinstance(getattr(self, name), kind), name,
                   f"expected a {kind.__name__}, got {type(getattr(self, name)).__name__}")
         try:

@@ -1,0 +1,110 @@
+"""Tracking the MuJoCo development set (``data/mujoco/``, images jaxhand did not draw) per setting.
+
+Each sequence is tracked from its true first pose at 30 frames/s with the image front end, and
+once with exact features (``ExactFrontEnd``, 0.5 px noise) as the reference, under each named
+setting (a change to ``TrackConfig``). Per run: mean and max absolute error (deg) over the moving
+joints (those whose truth moves), of the reported estimate (``q_filtered``) and of the raw solve
+(``q_solved``), frames flagged lost, and frames/s of the tracker step. Prints a table and writes
+``benchmarks/results/devset.json``.
+
+    .venv/bin/python benchmarks/devset.py                                   # default sequences, all settings
+    .venv/bin/python benchmarks/devset.py --only open_close --settings default,temporal
+    .venv/bin/python benchmarks/devset.py --frames 30 --no-json             # quick look
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _common import REPO, RESULTS, environment, format_table, write_json  # noqa: E402
+
+from jaxhand.io import load_devset, open_frames  # noqa: E402
+from jaxhand.track import ExactFrontEnd, ImageFrontEnd, TrackConfig, Tracker, config_to_dict  # noqa: E402
+
+SEQUENCES = ("open_close", "index_over_middle", "thumb_opposition", "fast_spread", "wave_two_cameras")
+
+#: Named settings: changes to the default TrackConfig (as in TrackConfig.merged).
+SETTINGS = {
+    "default": {},
+    # a fixed-sigma temporal prior around the g-h-k prediction, the g-h-k update reported
+    "temporal5+dip": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "dip_pip_weight": 10.0}},
+    # the solve with the prior reported (the filter only predicts)
+    "temporal10+solve": {"prior": {"temporal_sigma_deg": 10.0, "temporal_sigma_mm": 10.0},
+                         "filter": {"report_solve": True}},
+    "temporal10+dip+solve": {"prior": {"temporal_sigma_deg": 10.0, "temporal_sigma_mm": 10.0, "dip_pip_weight": 10.0},
+                             "filter": {"report_solve": True}},
+    # information-weighted (issue 13 item 5)
+    "info0.1+solve": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "information_ratio": 0.1},
+                      "filter": {"report_solve": True}},
+}
+
+
+def track(seq, config: TrackConfig, exact: bool, frames: int | None):
+    m, cams = seq.model, seq.truth.cameras
+    n = len(seq.truth.q) if frames is None else min(frames, len(seq.truth.q))
+    if exact:
+        frontend, images = ExactFrontEnd(m, cams, seq.truth.q[:n], noise_px=0.5, seed=0), None
+    else:
+        frontend = ImageFrontEnd(m, cams, config.image)
+        folders = [seq.folder / Path(f[0]).parent for f in seq.truth.image_files]
+        images = open_frames(folders, fps=seq.truth.fps)
+    tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
+    state = tracker.init(seq.truth.q[0])
+    filt, raw, lost, times = [], [], 0, []
+    blank = [np.zeros(c.size[::-1], np.uint8) for c in cams] if exact else None
+    it = zip(*images) if images is not None else iter(lambda: None, 0)
+    for k in range(n):
+        frame = next(it)
+        ims = blank if exact else [f.image for f in frame]
+        t0 = time.perf_counter()
+        state, rep = tracker.step(state, ims, k)
+        times.append(time.perf_counter() - t0)
+        filt.append(rep.q_filtered)
+        raw.append(rep.q_solved)
+        lost += bool(rep.lost)
+    qt = np.asarray(seq.truth.q[:n])
+    moving = (np.ptp(np.asarray(seq.truth.q), axis=0) > 1e-6) & np.asarray(m.is_angle)
+    out = {"frames": n, "lost": lost, "fps": 1.0 / float(np.median(times[1:])) if n > 1 else float("nan")}
+    for label, q in (("filtered", filt), ("raw", raw)):
+        e = np.degrees(np.abs(np.asarray(q) - qt))[:, moving]
+        out[f"{label}_mean_deg"], out[f"{label}_max_deg"] = float(e.mean()), float(e.max())
+    return out
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--only", default=",".join(SEQUENCES), help="comma-separated sequences")
+    p.add_argument("--settings", default=",".join(SETTINGS), help="comma-separated settings: " + ", ".join(SETTINGS))
+    p.add_argument("--frames", type=int, default=None, help="first N frames only")
+    p.add_argument("--no-exact", action="store_true", help="skip the exact-feature reference")
+    p.add_argument("--no-json", action="store_true")
+    p.add_argument("--json", default="devset.json", help="file name under benchmarks/results/")
+    args = p.parse_args(argv)
+    rows, records = [], []
+    for name in args.only.split(","):
+        seq = load_devset(REPO / "data" / "mujoco" / name)
+        for setting in args.settings.split(","):
+            config = TrackConfig().merged(SETTINGS[setting])
+            for exact in ((False,) if args.no_exact else (False, True)):
+                r = track(seq, config, exact, args.frames)
+                rec = {"sequence": name, "setting": setting, "features": "exact" if exact else "image", **r,
+                       "config": config_to_dict(config)}
+                records.append(rec)
+                rows.append([name, setting, rec["features"], f"{r['filtered_mean_deg']:.2f}",
+                             f"{r['filtered_max_deg']:.1f}", f"{r['raw_mean_deg']:.2f}", f"{r['raw_max_deg']:.1f}",
+                             str(r["lost"]), f"{r['fps']:.1f}"])
+                print(" | ".join(rows[-1]), flush=True)
+    print(format_table(rows, ["sequence", "setting", "features", "mean", "max", "raw mean", "raw max", "lost", "fps"]))
+    if not args.no_json:
+        write_json({"environment": environment(), "runs": records}, RESULTS / args.json)
+
+
+if __name__ == "__main__":
+    main()

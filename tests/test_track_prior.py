@@ -1,0 +1,139 @@
+"""Pose priors in the tracker's solve (issue 13 items 5, 6): TrackConfig.prior.
+
+- a temporal prior of huge weight pins the solve to its prediction; weight 0 gives the solve
+  without priors (to the solver's tolerance), and priors off (the default) is the program without priors;
+- the information weight is the fixed one where the images see nothing and fades where they do;
+- the frame's RMS counts the image residuals only;
+- no recompilation across frames or for new prior numbers;
+- on exact features the information-weighted prior's reported estimate is no worse than the raw
+  solve without priors.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import CompileCounter, FunctionFrontEnd
+
+import jaxhand as jh
+from jaxhand.features import features_from_pose
+from jaxhand.priors import TemporalPrior, information_weight, temporal_weight
+from jaxhand.render import make_preset
+from jaxhand.solve.internal import fit_traced, solver_program
+from jaxhand.track import ExactFrontEnd, FilterConfig, PriorConfig, RobustConfig, TrackConfig, Tracker
+
+
+@pytest.fixture(scope="module")
+def problem():
+    seq = make_preset("two_finger_occlusion", frames=8, size=(160, 120))
+    feats = [features_from_pose(seq.model, seq.cameras, q, noise_px=0.5, rng=np.random.default_rng(k))
+             for k, q in enumerate(seq.q)]
+    return seq, feats
+
+
+def _solve(seq, feats, q0, priors):
+    build, config = solver_program("lm", jh.FitConfig(max_steps=30, jacobian="geometric"))
+    return jax.jit(lambda f, q, p: fit_traced(seq.model, seq.cameras, f, q, build, config, priors=p))(
+        tuple(feats), jnp.asarray(q0), priors)
+
+
+def test_huge_weight_pins_q_to_the_prediction_and_zero_weight_changes_nothing(problem):
+    seq, feats = problem
+    m = seq.model
+    q_pred = np.clip(seq.q[3] + 0.2, m.q_lower, m.q_upper)
+    plain = _solve(seq, feats[3], q_pred, ())
+    w = jnp.asarray(temporal_weight(m, 5.0, 5.0))
+    pinned = _solve(seq, feats[3], q_pred, (TemporalPrior(q_pred=q_pred, weight=w * 1e6),))
+    zero = _solve(seq, feats[3], q_pred, (TemporalPrior(q_pred=q_pred, weight=w * 0.0),))
+    np.testing.assert_allclose(np.asarray(pinned.q), q_pred, atol=1e-6)
+    # zero rows change the rounding of the linear solves only (bit for bit: PriorConfig off)
+    np.testing.assert_allclose(np.asarray(zero.q), np.asarray(plain.q), rtol=0, atol=1e-7)
+    assert float(zero.cost) == pytest.approx(float(plain.cost), rel=1e-6)
+    # sanity: without a prior the solve leaves q_pred for the truth
+    assert np.abs(np.asarray(plain.q) - seq.q[3]).max() < np.abs(q_pred - seq.q[3]).max() / 2
+
+
+def test_information_weight_is_full_where_unseen_and_fades_where_seen():
+    w = jnp.asarray([2.0, 3.0, 0.0])
+    np.testing.assert_allclose(information_weight(w, jnp.zeros((3, 3)), 1.0), np.diag(w), atol=1e-14)
+    lam = jnp.diag(jnp.asarray([4.0 * 99.0, 0.0, 5.0]))   # entry 0 seen with 99x the prior's information
+    W = np.asarray(information_weight(w, lam, 1.0))
+    np.testing.assert_allclose(W, np.diag([2.0 * 0.1, 3.0, 0.0]), atol=1e-12)
+    # a rotated information: the prior's information is D f(L) D, whatever the basis
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(3, 3))
+    lam = jnp.asarray(A @ A.T)
+    W = np.asarray(information_weight(w, lam, 0.5))
+    D = np.diag(np.asarray(w))
+    S = np.diag([0.5, 1 / 3, 0.0])
+    L = S @ np.asarray(lam) @ S
+    np.testing.assert_allclose(W.T @ W, D @ (0.5 * np.linalg.inv(0.5 * np.eye(3) + L)) @ D, atol=1e-12)
+
+
+def _track(seq, feats, config, frames=None):
+    n = len(seq.q) if frames is None else frames
+    dt = float(seq.times_s[1] - seq.times_s[0])
+    tracker = Tracker(seq.model, seq.cameras, FunctionFrontEnd(lambda images, q, s, frame: feats[frame]), config,
+                      dt_s=dt)
+    state = tracker.init(seq.q[0])
+    reports = []
+    for k in range(n):
+        state, rep = tracker.step(state, [None] * len(seq.cameras), k)
+        reports.append(rep)
+    return reports
+
+
+def test_priors_off_is_the_program_without_priors_and_rms_counts_image_residuals_only(problem):
+    seq, feats = problem
+    base = _track(seq, feats, TrackConfig(reextract=0), 4)
+    off = _track(seq, feats, TrackConfig(reextract=0, prior=PriorConfig(temporal_sigma_deg=0.0)), 4)
+    for a, b in zip(base, off):
+        np.testing.assert_array_equal(a.q_filtered, b.q_filtered)
+        assert a.rms_px == b.rms_px
+    strong = _track(seq, feats, TrackConfig(reextract=0, robust=RobustConfig(passes=0, gate_scale_px=0.0),
+                                            prior=PriorConfig(temporal_sigma_deg=1e-3, temporal_sigma_mm=1e-3)), 4)
+    n_res = 2 * (seq.model.n_tips + seq.model.n_links) * len(seq.cameras)
+    for rep in strong:   # pinned to the prediction, the RMS is that of the image residuals there
+        args = jh.residuals.make_residual_args(seq.model, seq.cameras, feats[rep.frame])
+        r = np.asarray(jh.residuals.residuals(jnp.asarray(rep.q_solved), args))
+        assert rep.rms_px == pytest.approx(np.sqrt(np.sum(r * r) / n_res), rel=1e-6)
+        assert rep.cost == pytest.approx(0.5 * np.sum(r * r), rel=1e-6)
+        np.testing.assert_allclose(rep.q_solved, rep.q_pred, atol=1e-5)
+
+
+def test_no_recompile_across_frames_nor_for_new_prior_numbers(problem):
+    seq, feats = problem
+    dt = float(seq.times_s[1] - seq.times_s[0])
+    images = [np.zeros((120, 160), np.uint8)]
+    config = TrackConfig(prior=PriorConfig(temporal_sigma_deg=5.0, temporal_sigma_mm=5.0, information_ratio=1.0,
+                                           dip_pip_weight=10.0), filter=FilterConfig(report_solve=True))
+    tracker = Tracker(seq.model, seq.cameras, ExactFrontEnd(seq.model, seq.cameras, seq.q), config, dt_s=dt)
+    state = tracker.init(seq.q[0])
+    state, _ = tracker.step(state, images)
+    with CompileCounter() as counter:
+        for k in range(1, 5):
+            state, rep = tracker.step(state, images, k)
+        other = config.merged({"prior": {"temporal_sigma_deg": 2.0, "information_ratio": 3.0, "dip_pip_weight": 1.0}})
+        t2 = Tracker(seq.model, seq.cameras, ExactFrontEnd(seq.model, seq.cameras, seq.q), other, dt_s=dt)
+        s2 = t2.init(seq.q[0])
+        for k in range(3):
+            s2, _ = t2.step(s2, images, k)
+    assert counter.count == 0
+    assert np.degrees(np.abs(rep.q_solved - seq.q[4])).mean() < 4.0   # sanity
+
+
+def test_information_weighted_estimate_on_exact_features_is_no_worse_than_the_raw_solve(problem):
+    seq, feats = problem
+    truth = np.asarray(seq.q)
+    moving = (np.ptp(truth, axis=0) > 1e-9) & np.asarray(seq.model.is_angle)
+    raw = _track(seq, feats, TrackConfig(reextract=0, filter=FilterConfig(enabled=False)))
+    info = _track(seq, feats, TrackConfig(reextract=0, filter=FilterConfig(report_solve=True),
+                                          prior=PriorConfig(temporal_sigma_deg=5.0, temporal_sigma_mm=5.0,
+                                                            information_ratio=1.0)))
+    ghk = _track(seq, feats, TrackConfig(reextract=0))
+
+    def err(reps, field):
+        return np.degrees(np.abs(np.array([getattr(r, field) for r in reps]) - truth))[:, moving].mean()
+
+    e_raw, e_info, e_ghk = err(raw, "q_solved"), err(info, "q_filtered"), err(ghk, "q_filtered")
+    assert e_info <= e_raw * 1.02 + 0.05, (e_info, e_raw, e_ghk)
