@@ -43,7 +43,11 @@ def test_tracking_reproduces_the_golden_runs():
     runs = {"image_wssd": (ImageFrontEnd(seq.model, seq.cameras, wssd), TrackConfig()),
             "image_wssd_reacq": (ImageFrontEnd(seq.model, seq.cameras, reacquire), TrackConfig(reextract=0))}
     for name, (frontend, config) in runs.items():
-        np.testing.assert_array_equal(_track(seq, images, frontend, config), golden[name], err_msg=name)
+        # Since the front end no longer clips pills inside the image by the image frame, the
+        # visible shares (and line weights) move by rounding (< 1e-12 relative,
+        # test_image_reference.py): the tracked q moves by < 1e-8 rad over 8 frames.
+        np.testing.assert_allclose(_track(seq, images, frontend, config), golden[name], rtol=0, atol=1e-8,
+                                   err_msg=name)
     hand = make_preset("two_camera_hand", frames=100)
     oracle = ExactFrontEnd(hand.model, hand.cameras, hand.q, noise_px=0.5, seed=3)
     q = _track(hand, [[None, None]] * 8, oracle, TrackConfig())
