@@ -13,16 +13,17 @@ import contextlib
 import dataclasses
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import cv2
 import numpy as np
 from tqdm import tqdm
 
-from .._errors import InputError
-from ..camera import as_rig
+from .._errors import InputError, JaxhandWarning
+from ..camera import Perspective, as_rig
 from ..image import ImageState
-from ..io import ResultWriter, pose_to_dict
+from ..io import FrameSource, ResultWriter, pose_to_dict
 from ..kinematics import forward, project_pose
 from ..model import Model
 from ..viz import VideoWriter, draw_view, plot_joint_angles
@@ -143,6 +144,9 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
     tracker = Tracker(model, cameras, frontend, config, dt_s=1.0 / fps)
     if not resume:
         state = tracker.init(q0)
+        _check_view(model, cameras, state.q_last)
+        if isinstance(frontend, ImageFrontEnd):
+            _check_fit(model, cameras, sources, state.q_last)
     with ResultWriter(out, model, overwrite=overwrite, resume=resume) as writer:
         resumed = None
         if resume:
@@ -155,6 +159,71 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
                                 "velocity (the filter's velocity and the front end's templates start afresh)"}
         return _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, truth, video, progress,
                     q0, resumed)
+
+
+def _check_view(model: Model, cameras, q) -> None:
+    """Every perspective camera sees the hand at ``q`` in front of it (not behind, not around it)."""
+    pose = forward(model, q)
+    ends = np.concatenate([np.asarray(pose.link_start), np.asarray(pose.link_end)])
+    radius = np.concatenate([np.asarray(model.link_radius_mm)] * 2)
+    for k, cam in enumerate(cameras):
+        if not isinstance(cam, Perspective):
+            continue
+        depth = np.asarray(cam.to_camera(ends))[:, 2] - radius
+        if depth.min() <= 0:
+            where = "behind" if depth.max() <= 0 else "around"
+            i = int(np.argmin(depth)) % model.n_links
+            raise InputError(f"camera {k} (perspective): the hand at the initial pose lies {where} the camera "
+                             f"(link {model.link_names[i]!r} at {depth.min() + radius[i]:.0f} mm depth, "
+                             f"radius {radius[i]:.0f} mm): check the camera's R and t (world to camera, mm; the "
+                             "camera looks along its +z) or the initial pose (--init)")
+
+
+def _first_images(sources) -> list | None:
+    try:
+        frames = next(iter(zip(*sources)))
+    except (StopIteration, TypeError):
+        return None
+    return [f.image for f in frames]
+
+
+def _fit_score(model: Model, cam, q, image: np.ndarray) -> float | None:
+    """The share of points along the projected link axes that land on the image's foreground
+    (brighter than Otsu's threshold), or None when the image is flat or no point lands inside."""
+    if image is None or image.ndim != 2 or image.dtype != np.uint8 or int(image.max()) == int(image.min()):
+        return None
+    pose = forward(model, q)
+    f = np.linspace(0.15, 0.85, 5)[None, :, None]
+    start, end = np.asarray(pose.link_start)[:, None], np.asarray(pose.link_end)[:, None]
+    px = np.asarray(cam.project((start + f * (end - start)).reshape(-1, 3))[0])
+    h, w = image.shape
+    inside = (px[:, 0] >= 0) & (px[:, 0] <= w - 1) & (px[:, 1] >= 0) & (px[:, 1] <= h - 1)
+    if not inside.any():
+        return 0.0
+    level, _ = cv2.threshold(image, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    xy = np.round(px[inside]).astype(int)
+    return float(np.mean(image[xy[:, 1], xy[:, 0]] > level)) * float(inside.mean())
+
+
+def _check_fit(model: Model, cameras, sources, q) -> None:
+    """Warn when a camera's projection of the initial pose does not fit its input's first frame
+    (cameras and inputs in the wrong order, or the wrong camera file); a cheap check."""
+    if not all(isinstance(s, FrameSource) for s in sources):   # an iterator would lose its first frame
+        return
+    images = _first_images(sources)
+    if images is None or len(images) != len(cameras):
+        return
+    score = [[_fit_score(model, cam, q, img) if cam.size == img.shape[1::-1] else None for img in images]
+             for cam in cameras]
+    for k in range(len(cameras)):
+        own = score[k][k]
+        if own is None or own >= 0.5:
+            continue
+        better = [j for j in range(len(images)) if j != k and score[k][j] is not None and score[k][j] > own + 0.25]
+        hint = (f"; it fits input {better[0]}'s frame better ({score[k][better[0]]:.0%}): are the inputs in the "
+                "order of the cameras?") if better else ": check the camera file, the input and the initial pose"
+        warnings.warn(f"camera {k}: only {own:.0%} of the model's projected link axes at the initial pose lie on "
+                      f"the bright foreground of input {k}'s first frame{hint}", JaxhandWarning, stacklevel=3)
 
 
 def _check_truth(model: Model, truth, n: int) -> np.ndarray:
