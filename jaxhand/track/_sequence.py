@@ -169,9 +169,10 @@ def _check_view(model: Model, cameras, q) -> None:
     for k, cam in enumerate(cameras):
         if not isinstance(cam, Perspective):
             continue
-        depth = np.asarray(cam.to_camera(ends))[:, 2] - radius
+        centre = np.asarray(cam.to_camera(ends))[:, 2]
+        depth = centre - radius
         if depth.min() <= 0:
-            where = "behind" if depth.max() <= 0 else "around"
+            where = "behind" if centre.max() <= 0 else "around"
             i = int(np.argmin(depth)) % model.n_links
             raise InputError(f"camera {k} (perspective): the hand at the initial pose lies {where} the camera "
                              f"(link {model.link_names[i]!r} at {depth.min() + radius[i]:.0f} mm depth, "
