@@ -17,9 +17,13 @@ import warnings
 from pathlib import Path
 
 import cv2
+import equinox as eqx
+import jax
+import jax.numpy as jnp
 import numpy as np
 from tqdm import tqdm
 
+from .. import kinematics
 from .._errors import InputError, JaxhandWarning
 from ..camera import Perspective, as_rig
 from ..image import ImageState
@@ -56,6 +60,13 @@ def _overlay(model: Model, cameras, images, report: StepReport) -> np.ndarray:
     return np.hstack([cv2.copyMakeBorder(t, 0, h - t.shape[0], 0, 0, cv2.BORDER_CONSTANT) for t in tiles])
 
 
+@eqx.filter_jit
+def _tips_px(model: Model, cameras, q):
+    """(frames, n_q) states -> (cams, frames, tips, 2) projected tips."""
+    tips = jax.vmap(lambda x: kinematics.pose(model, x).tips)(q)
+    return jnp.stack([c.project(tips)[0] for c in cameras])
+
+
 def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarray) -> dict:
     """Joint errors (deg) and 2-D tip errors (px) of estimates against ground truth.
 
@@ -67,12 +78,10 @@ def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarr
     err = np.abs(q_est - q_truth)
     angle = model.is_angle
     err_user = np.where(angle, np.degrees(err), err)
-    tip_err = []
-    for q, qt in zip(q_est, q_truth):
-        pe, pt = forward(model, q), forward(model, qt)
-        tip_err.append([np.linalg.norm(np.asarray(c.project(pe.tips)[0]) - np.asarray(c.project(pt.tips)[0]), axis=-1)
-                        for c in as_rig(cameras)])
-    tip_err = np.asarray(tip_err)
+    rig = as_rig(cameras)
+    q_est, q_truth = np.asarray(q_est), np.asarray(q_truth)
+    tip_err = np.linalg.norm(np.asarray(_tips_px(model, rig, q_est)) - np.asarray(_tips_px(model, rig, q_truth)),
+                             axis=-1)   # (cams, frames, tips): one batched call, not one per frame
     joints = [i for i, k in enumerate(model.q_kinds) if k == "angle" and not model.q_names[i].startswith("palm")]
     out = {
         "joint_error_deg": {"mean": float(err_user[:, joints].mean()), "max": float(err_user[:, joints].max()),
