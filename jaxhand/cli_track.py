@@ -257,6 +257,8 @@ def print_summary(summary: dict, out: Path, file=None) -> None:
     for name in ("angles.csv", "results.npz", "summary.json", "overlay.mp4", "angles.png"):
         if (out / name).exists():
             print(f"  {out / name}", file=file)
+    for path in sorted(out.glob("overlay_from_*.mp4")):   # the video of a resumed run's rest
+        print(f"  {path}", file=file)
 
 
 def run_demo(out: str | Path, preset: str = "two_finger_occlusion", frames: int = 80) -> dict:
