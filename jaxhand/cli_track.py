@@ -16,21 +16,32 @@ __all__ = ["register", "run_demo", "print_summary", "track_config_from_args"]
 
 
 def register(sub) -> None:
+    from .image import SEARCH_NAMES
+    from .render import preset_names
+    from .solve import SOLVERS
+
     p = sub.add_parser("track", help="track a model through a video or image folder(s)",
-                       description="Track MODEL through INPUT (a video file or an image folder per camera, or a "
-                                   "'jaxhand synth' folder, which also supplies cameras, model and ground truth).")
+                       description="Track MODEL through INPUT (a video file or an image folder per camera, a "
+                                   "'jaxhand synth' folder, or a dev-set sequence folder holding truth.json, such as "
+                                   "data/mujoco/open_close; the last two also supply cameras, model, frame rate and "
+                                   "ground truth).")
     p.add_argument("inputs", nargs="+", metavar="INPUT")
-    p.add_argument("--model", help="built-in model name or model file (default: the synth folder's model)")
+    p.add_argument("--model", help="built-in model name or model file (default: the synth or dev-set folder's model)")
     p.add_argument("--init", default=None, help="initial pose: 'default', name=deg pairs, all values, or a .json "
-                                                "(default: a synth folder's first ground-truth frame, else default)")
+                                                "(default: a synth or dev-set folder's first ground-truth frame, "
+                                                "else default)")
     p.add_argument("--camera", action="append", help="camera JSON file (once per camera, or one rig file)")
     p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an earlier run in --out")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted run in --out (same inputs and settings) after its last finished "
+                        "frame; the tracker restarts there at the filtered pose with zero velocity")
     p.add_argument("--config", metavar="TOML", help="tracking settings (a TrackConfig TOML file, see "
                                                     "jaxhand.save_track_config); the flags below override it")
     defaults = TrackConfig()   # --help shows the defaults of the config itself
     p.add_argument("--method",
-                   help=f"feature search (see jaxhand.image.SEARCH_NAMES; default: {defaults.image.method})")
-    p.add_argument("--solver", help=f"gn | gn_eta | lm_fixed | lm | bounded (default: {defaults.solver})")
+                   help=f"feature search: {' | '.join(SEARCH_NAMES)} (default: {defaults.image.method})")
+    p.add_argument("--solver", help=f"{' | '.join(SOLVERS)} (default: {defaults.solver})")
     p.add_argument("--steps", type=int,
                    help=f"solver iterations per frame (1: thesis fast mode; default: {defaults.fit.max_steps})")
     p.add_argument("--theta", type=float, help="g-h-k discount factor per frame at --theta-rate frames/s (scaled to "
@@ -47,51 +58,127 @@ def register(sub) -> None:
                         "0.05-0.2 when the model's radii may be off; 0: keep the model's; "
                         f"default: {defaults.image.width_gain})")
     p.add_argument("--fps", type=float, default=25.0, help="frame rate of image folders")
-    p.add_argument("--truth", help="ground truth: a synth ground_truth.json (default: the synth folder's)")
-    p.add_argument("--max-frames", type=int, help="stop after N frames")
+    p.add_argument("--truth", help="ground truth: a 'jaxhand synth' ground_truth.json or its folder, or a dev-set "
+                                   "truth.json or its folder (data/mujoco/README.md; default: the input folder's)")
+    p.add_argument("--max-frames", type=int, metavar="N", help="stop after N frames (N >= 1)")
     p.add_argument("--no-video", action="store_true", help="skip the overlay video")
     p.set_defaults(func=_track)
-    d = sub.add_parser("demo", help="render a built-in sequence, track it, write and print the report")
-    d.add_argument("--out", default="demo_out", help="output folder")
-    d.add_argument("--preset", default="two_finger_occlusion", help="synthetic sequence to render and track")
-    d.add_argument("--frames", type=int, default=80, help="frames to render (the motion is the same for any count)")
+    d = sub.add_parser("demo", help="render a built-in sequence, track it, write and print the report",
+                       description="Render a synthetic sequence (PRESET) into OUT/sequence, track it with the default "
+                                   "settings into OUT/track (replacing an earlier demo there) and print the report: "
+                                   "accuracy against the exact ground truth, speed, lost frames.")
+    d.add_argument("--out", default="demo_out", help="output folder (default: demo_out)")
+    d.add_argument("--preset", default="two_finger_occlusion", choices=preset_names(), metavar="PRESET",
+                   help=f"synthetic sequence to render and track: {', '.join(preset_names())} "
+                        "(default: two_finger_occlusion)")
+    d.add_argument("--frames", type=int, default=80,
+                   help="frames to render (the motion is the same for any count; default: 80)")
     d.set_defaults(func=_demo)
+
+
+def _is_devset(folder: Path) -> bool:
+    return folder.is_dir() and (folder / "truth.json").is_file()
+
+
+def _is_synth(folder: Path) -> bool:
+    return folder.is_dir() and ((folder / "ground_truth.json").exists()
+                                or (folder / "ground_truth.partial.jsonl").exists())
 
 
 def _resolve(args):
     from .camera import load_camera
-    from .io import open_frames
+    from .io import load_devset, open_frames
     from .model import get_model
     from .render import load_sequence
 
     inputs = [Path(p) for p in args.inputs]
-    synth = None
-    if len(inputs) == 1 and inputs[0].is_dir() and ((inputs[0] / "ground_truth.json").exists()
-                                                   or (inputs[0] / "ground_truth.partial.jsonl").exists()):
+    synth = dev = None
+    if len(inputs) == 1 and _is_synth(inputs[0]):
         synth = load_sequence(inputs[0])
-    model = get_model(args.model) if args.model else (synth.model if synth else None)
+    elif len(inputs) == 1 and _is_devset(inputs[0]):
+        dev = load_devset(inputs[0], model=args.model or None)
+    folder = synth if synth is not None else dev
+    model = get_model(args.model) if args.model else (folder.model if folder is not None else None)
     if model is None:
-        raise InputError("--model is required unless INPUT is a 'jaxhand synth' folder")
+        raise InputError("--model is required unless INPUT is a 'jaxhand synth' or a dev-set folder")
     if args.camera:
         cameras = tuple(c for path in args.camera for c in load_camera(path))
-    elif synth is not None:
-        cameras = synth.cameras
+    elif folder is not None:
+        cameras = tuple(folder.cameras)
     else:
-        raise InputError("--camera is required unless INPUT is a 'jaxhand synth' folder")
-    if synth is not None:
-        inputs = [Path(paths[0]).parent for paths in synth.image_paths]
+        raise InputError("--camera is required unless INPUT is a 'jaxhand synth' or a dev-set folder")
+    if folder is not None:
+        inputs = [Path(paths[0]).parent for paths in folder.image_paths]
     if len(inputs) != len(cameras):
         raise InputError(f"{len(cameras)} camera(s) but {len(inputs)} input(s): give one input per camera")
     fps = args.fps
     if synth is not None and len(synth.times_s) > 1:
         fps = 1.0 / float(synth.times_s[1] - synth.times_s[0])
-    sources = open_frames(inputs, fps=fps)
+    elif dev is not None:
+        fps = dev.fps
+    sources = open_frames(inputs, fps=fps, sizes=[c.size for c in cameras])
     truth = None
     if args.truth:
-        truth = load_sequence(Path(args.truth).parent).q
+        truth = load_truth_arg(args.truth, model)
     elif synth is not None:
         truth = synth.q
-    return model, cameras, sources, truth, synth
+    elif dev is not None:
+        truth = dev.truth.q
+    if truth is not None:
+        n = len(sources[0]) if args.max_frames is None else min(len(sources[0]), args.max_frames)
+        where = f"--truth {args.truth}" if args.truth else f"{inputs[0]}: the ground truth"
+        if len(truth) < n:
+            raise InputError(f"{where} has {len(truth)} frame(s) but the input has {n}: give the truth of this "
+                             "input (or track fewer frames with --max-frames)")
+    q_first = None if folder is None else (synth.q[0] if synth is not None else dev.truth.q[0])
+    return model, cameras, sources, truth, q_first
+
+
+def load_truth_arg(path: str | Path, model) -> np.ndarray:
+    """The (frames, n_q) ground truth of ``--truth PATH`` in ``model``'s q order: a ``jaxhand synth``
+    ``ground_truth.json`` or its folder, or a dev-set ``truth.json`` (``data/mujoco/``'s format) or
+    its folder.
+
+    Raises:
+        InputError: a missing or unreadable file, or the truth of another model (naming both).
+    """
+    from .io import load_truth
+    from .render import load_sequence
+
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"--truth {p}: no such file or folder")
+    if _is_synth(p) or (p.is_file() and p.name in ("ground_truth.json", "ground_truth.partial.jsonl")):
+        seq = load_sequence(p if p.is_dir() else p.parent)
+        if tuple(seq.model.q_names) != tuple(model.q_names):
+            raise InputError(f"--truth {p}: the truth of model {seq.model.name!r} ({', '.join(seq.model.q_names)}), "
+                             f"but the tracked model is {model.name!r} ({', '.join(model.q_names)})")
+        return np.asarray(seq.q)
+    if _is_devset(p) or (p.is_file() and p.suffix == ".json"):
+        try:
+            return np.asarray(load_truth(p, model).q)
+        except InputError as err:
+            raise InputError(f"--truth: {err}") from None
+    raise InputError(f"--truth {p}: neither a 'jaxhand synth' ground_truth.json (or its folder) nor a dev-set "
+                     "truth.json (or its folder; data/mujoco/README.md)")
+
+
+_FLAG_FIELDS = (("solver", "--solver", None, "solver"), ("steps", "--steps", "fit", "max_steps"),
+                ("theta", "--theta", "filter", "theta"), ("theta_rate", "--theta-rate", "filter", "theta_rate_hz"),
+                ("method", "--method", "image", "method"), ("width_gain", "--width-gain", "image", "width_gain"))
+
+
+def _flag_error(flag: str, key: str, err: InputError) -> InputError:
+    """``err`` of the config field behind ``flag``, reworded to name the flag."""
+    msg = str(err)
+    head, sep, rest = msg.partition(": ")
+    if sep and " " not in head:   # "fit.max_steps: ..." or "ImageConfig.method: ..."
+        msg = rest
+    for name in (key, key.removesuffix("_hz")):
+        if msg.startswith(name + " "):
+            msg = msg[len(name) + 1:]
+            break
+    return InputError(f"{flag}: {msg}")
 
 
 def track_config_from_args(args) -> TrackConfig:
@@ -99,37 +186,57 @@ def track_config_from_args(args) -> TrackConfig:
     given on the command line on top of it."""
     config = load_track_config(args.config) if args.config else TrackConfig()
     changes: dict = {}
-    for flag, section, key in (("solver", None, "solver"), ("steps", "fit", "max_steps"), ("theta", "filter", "theta"),
-                               ("theta_rate", "filter", "theta_rate_hz"), ("method", "image", "method"),
-                               ("width_gain", "image", "width_gain")):
-        value = getattr(args, flag)
+    for attr, flag, section, key in _FLAG_FIELDS:
+        value = getattr(args, attr)
         if value is not None:
+            one = {section: {key: value}} if section else {key: value}
+            try:
+                config.merged(one)
+            except InputError as err:
+                raise _flag_error(flag, key, err) from None
             (changes.setdefault(section, {}) if section else changes)[key] = value
     if args.no_filter:
         changes.setdefault("filter", {})["enabled"] = False
     if args.reacquire is not None:
         try:
-            changes.setdefault("image", {})["reacquire_deg"] = [float(a) for a in args.reacquire.split(",")
-                                                                if a.strip()]
+            angles = [float(a) for a in args.reacquire.split(",") if a.strip()]
         except ValueError:
             raise InputError(f"--reacquire: expected angles in degrees separated by commas, got {args.reacquire!r}"
                              ) from None
+        try:
+            config.merged({"image": {"reacquire_deg": angles}})
+        except InputError as err:
+            raise _flag_error("--reacquire", "reacquire_deg", err) from None
+        changes.setdefault("image", {})["reacquire_deg"] = angles
     return config.merged(changes) if changes else config
 
 
 def _track(args) -> int:
+    from ._errors import OutputExistsError
+    from .cli import out_dir
     from .io import parse_pose
     from .track import track_sequence
 
     config = track_config_from_args(args)   # first: a bad settings file fails before any frame is read
-    model, cameras, sources, truth, synth = _resolve(args)
-    if args.init is None and synth is not None:
-        q0 = np.asarray(synth.q[0])
+    if args.max_frames is not None and args.max_frames < 1:
+        raise InputError(f"--max-frames: expected a count >= 1, got {args.max_frames}")
+    if args.resume and args.overwrite:
+        raise InputError("--resume and --overwrite exclude each other: choose one")
+    out = out_dir(args.out)
+    model, cameras, sources, truth, q_first = _resolve(args)
+    if args.init is None and q_first is not None:
+        q0 = np.asarray(q_first)
     else:
         q0 = parse_pose(model, args.init)
-    summary = track_sequence(model, cameras, sources, q0, args.out, config=config, truth=truth,
-                             video=not args.no_video, max_frames=args.max_frames)
-    print_summary(summary, Path(args.out))
+    try:
+        summary = track_sequence(model, cameras, sources, q0, out, config=config, truth=truth,
+                                 video=not args.no_video, max_frames=args.max_frames, overwrite=args.overwrite,
+                                 resume=args.resume)
+    except OutputExistsError as err:
+        raise InputError(f"--out {err} (--resume continues an interrupted run, --overwrite replaces it)") from None
+    if args.resume and "resumed" in summary:
+        print(f"resumed after frame {summary['resumed']['after_frame']}: {summary['resumed']['state']}")
+    print_summary(summary, out)
     return 0
 
 
@@ -150,6 +257,8 @@ def print_summary(summary: dict, out: Path, file=None) -> None:
     for name in ("angles.csv", "results.npz", "summary.json", "overlay.mp4", "angles.png"):
         if (out / name).exists():
             print(f"  {out / name}", file=file)
+    for path in sorted(out.glob("overlay_from_*.mp4")):   # the video of a resumed run's rest
+        print(f"  {path}", file=file)
 
 
 def run_demo(out: str | Path, preset: str = "two_finger_occlusion", frames: int = 80) -> dict:
@@ -159,11 +268,11 @@ def run_demo(out: str | Path, preset: str = "two_finger_occlusion", frames: int 
     out = Path(out)
     seq = make_preset(preset, frames=frames)
     t0 = time.perf_counter()
-    write_sequence(seq, out / "sequence", RenderConfig(antialias=3), overwrite=True, progress=False)
+    write_sequence(seq, out / "sequence", RenderConfig(antialias=3), overwrite=True)   # a bar on a terminal
     print(f"rendered {frames} frames of {preset!r} in {time.perf_counter() - t0:.1f} s -> {out / 'sequence'}")
     from .cli import build_parser
 
-    args = build_parser().parse_args(["track", str(out / "sequence"), "--out", str(out / "track")])
+    args = build_parser().parse_args(["track", str(out / "sequence"), "--out", str(out / "track"), "--overwrite"])
     _track(args)
     return json.loads((out / "track" / "summary.json").read_text())
 

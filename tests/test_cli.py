@@ -29,7 +29,7 @@ def test_errors_are_one_line_and_exit_2(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("jaxhand models: error: unknown model 'hand99'") and err.count("\n") == 1
     assert main(["track", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
-    assert "--model is required unless INPUT is a 'jaxhand synth' folder" in capsys.readouterr().err
+    assert "--model is required unless INPUT is a 'jaxhand synth' or a dev-set folder" in capsys.readouterr().err
     assert main(["synth", "two_finger_occlusion", str(tmp_path / "s"), "--frames", "2", "--size", "80x60"]) == 0
     capsys.readouterr()
     assert main(["track", str(tmp_path / "s"), "--out", str(tmp_path / "o"), "--reacquire", "15,x"]) == 2

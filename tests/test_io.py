@@ -88,7 +88,8 @@ def test_parse_pose_forms(tmp_path):
     assert pose_to_dict(m, q)["index_pip"] == pytest.approx(-45.0)
     with pytest.raises(jh.InputError, match="unknown joint 'index_tip'; valid: index_mcp"):
         parse_pose(m, "index_tip=3")
-    with pytest.raises(jh.InputError, match=r"expected shape \(3,\)"):
+    with pytest.raises(jh.InputError,
+                       match=r"--init: expected 3 values for 'index' \(index_mcp, index_pip, index_dip\), got 2"):
         parse_pose(m, "1,2")
     with pytest.raises(jh.InputError, match=r"'index_dip' = 30 deg lies outside its limits"):
         parse_pose(m, "index_dip=30")

@@ -9,18 +9,25 @@ given, like thesis figs. 6.2 and 6.6) and ``summary.json`` with accuracy and tim
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import cv2
+import equinox as eqx
+import jax
+import jax.numpy as jnp
 import numpy as np
 from tqdm import tqdm
 
-from ..camera import as_rig
+from .. import kinematics
+from .._errors import InputError, JaxhandWarning
+from ..camera import Perspective, as_rig
 from ..image import ImageState
-from ..io import ResultWriter, pose_to_dict
+from ..io import FrameSource, ResultWriter, pose_to_dict
 from ..kinematics import forward, project_pose
 from ..model import Model
 from ..viz import VideoWriter, draw_view, plot_joint_angles
@@ -53,6 +60,13 @@ def _overlay(model: Model, cameras, images, report: StepReport) -> np.ndarray:
     return np.hstack([cv2.copyMakeBorder(t, 0, h - t.shape[0], 0, 0, cv2.BORDER_CONSTANT) for t in tiles])
 
 
+@eqx.filter_jit
+def _tips_px(model: Model, cameras, q):
+    """(frames, n_q) states -> (cams, frames, tips, 2) projected tips."""
+    tips = jax.vmap(lambda x: kinematics.pose(model, x).tips)(q)
+    return jnp.stack([c.project(tips)[0] for c in cameras])
+
+
 def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarray) -> dict:
     """Joint errors (deg) and 2-D tip errors (px) of estimates against ground truth.
 
@@ -64,12 +78,10 @@ def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarr
     err = np.abs(q_est - q_truth)
     angle = model.is_angle
     err_user = np.where(angle, np.degrees(err), err)
-    tip_err = []
-    for q, qt in zip(q_est, q_truth):
-        pe, pt = forward(model, q), forward(model, qt)
-        tip_err.append([np.linalg.norm(np.asarray(c.project(pe.tips)[0]) - np.asarray(c.project(pt.tips)[0]), axis=-1)
-                        for c in as_rig(cameras)])
-    tip_err = np.asarray(tip_err)
+    rig = as_rig(cameras)
+    q_est, q_truth = np.asarray(q_est), np.asarray(q_truth)
+    tip_err = np.linalg.norm(np.asarray(_tips_px(model, rig, q_est)) - np.asarray(_tips_px(model, rig, q_truth)),
+                             axis=-1)   # (cams, frames, tips): one batched call, not one per frame
     joints = [i for i, k in enumerate(model.q_kinds) if k == "angle" and not model.q_names[i].startswith("palm")]
     out = {
         "joint_error_deg": {"mean": float(err_user[:, joints].mean()), "max": float(err_user[:, joints].max()),
@@ -91,98 +103,273 @@ def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarr
 
 def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, frontend: AbstractFrontEnd | None = None,
                    *, config: TrackConfig | None = None, truth: np.ndarray | None = None, video: bool = True,
-                   progress: bool | None = None, max_frames: int | None = None) -> dict:
-    """Track ``model`` through ``sources`` (one :class:`~jaxhand.io.FrameSource` per camera).
+                   progress: bool | None = None, max_frames: int | None = None, overwrite: bool = False,
+                   resume: bool = False) -> dict:
+    """Track ``model`` through ``sources`` (one :class:`~jaxhand.io.FrameSource` per camera, or
+    any iterables of :class:`~jaxhand.io.Frame` with ``fps`` and ``len``).
+
+    An interruption (Ctrl-C; SIGTERM under the CLI) stops the run cleanly: every finished frame
+    stays in ``angles.csv`` and ``results.npz``, ``summary.json`` says ``"interrupted": true`` and
+    at which frame, the video is closed, and the :class:`KeyboardInterrupt` is raised again with
+    a one-line account. ``resume=True`` continues such a run after its last finished frame: the
+    tracker restarts at that frame's filtered pose with zero velocity (the summary's ``"resumed"``
+    says so), and the video of the rest goes to ``overlay_from_NNNN.mp4``.
 
     Args:
-        q0: initial state (validated against the limits).
+        q0: initial state (validated against the limits; ignored when resuming).
         out_dir: where ``angles.csv``, ``results.npz``, ``summary.json``, ``overlay.mp4`` and
             ``angles.png`` go (created if needed).
         frontend: the front end (default: an :class:`~jaxhand.ImageFrontEnd` with ``config.image``).
         config: the run's settings, written whole into ``summary.json`` (``"config"``).
         truth: optional (frames, n_q) ground truth for plots and the accuracy summary.
         progress: show a progress bar (default: when stderr is a terminal).
-        max_frames: stop after this many frames.
+        max_frames: stop after this many frames (>= 1).
+        overwrite: replace an earlier run in ``out_dir`` (else it is an error to mix runs).
+        resume: continue the interrupted run in ``out_dir``.
 
     Returns:
         The summary written to ``summary.json``.
+
+    Raises:
+        InputError: bad arguments, truth that does not fit, a folder that cannot be written
+            (a full disk: the finished frames are kept); :class:`~jaxhand.OutputExistsError`
+            for a folder holding an earlier run.
+        KeyboardInterrupt: interrupted, after the files are finished.
     """
     config = TrackConfig() if config is None else config
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     cameras = as_rig(cameras)
+    if max_frames is not None and max_frames < 1:
+        raise InputError(f"max_frames: expected a count >= 1, got {max_frames}")
+    if overwrite and resume:
+        raise InputError("overwrite and resume exclude each other: choose one")
     n = len(sources[0]) if max_frames is None else min(len(sources[0]), max_frames)
+    truth = None if truth is None else _check_truth(model, truth, n)
     fps = sources[0].fps
     frontend = ImageFrontEnd(model, cameras, config.image) if frontend is None else frontend
     if isinstance(frontend, ImageFrontEnd):   # the report records the settings the run used
         config = dataclasses.replace(config, image=frontend.config)
     tracker = Tracker(model, cameras, frontend, config, dt_s=1.0 / fps)
-    state = tracker.init(q0)
-    with ResultWriter(out, model) as writer:
+    if not resume:
+        state = tracker.init(q0)
+        _check_view(model, cameras, state.q_last)
+        if isinstance(frontend, ImageFrontEnd):
+            _check_fit(model, cameras, sources, state.q_last)
+    with ResultWriter(out, model, overwrite=overwrite, resume=resume) as writer:
+        resumed = None
+        if resume:
+            if writer.last_frame is None:
+                raise InputError(f"{out}: nothing to resume (the earlier run finished no frame)")
+            q0 = writer.last_q
+            state = tracker.init(q0)
+            resumed = {"after_frame": writer.last_frame,
+                       "state": f"re-initialised at the filtered pose of frame {writer.last_frame} with zero "
+                                "velocity (the filter's velocity and the front end's templates start afresh)"}
         return _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, truth, video, progress,
-                    q0)
+                    q0, resumed)
 
 
-def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, truth, video, progress, q0) -> dict:
+def _check_view(model: Model, cameras, q) -> None:
+    """Every perspective camera sees the hand at ``q`` in front of it (not behind, not around it)."""
+    pose = forward(model, q)
+    ends = np.concatenate([np.asarray(pose.link_start), np.asarray(pose.link_end)])
+    radius = np.concatenate([np.asarray(model.link_radius_mm)] * 2)
+    for k, cam in enumerate(cameras):
+        if not isinstance(cam, Perspective):
+            continue
+        centre = np.asarray(cam.to_camera(ends))[:, 2]
+        depth = centre - radius
+        if depth.min() <= 0:
+            where = "behind" if centre.max() <= 0 else "around"
+            i = int(np.argmin(depth)) % model.n_links
+            raise InputError(f"camera {k} (perspective): the hand at the initial pose lies {where} the camera "
+                             f"(link {model.link_names[i]!r} at {depth.min() + radius[i]:.0f} mm depth, "
+                             f"radius {radius[i]:.0f} mm): check the camera's R and t (world to camera, mm; the "
+                             "camera looks along its +z) or the initial pose (--init)")
+
+
+def _first_images(sources) -> list | None:
+    try:
+        frames = next(iter(zip(*sources)))
+    except (StopIteration, TypeError):
+        return None
+    return [f.image for f in frames]
+
+
+def _fit_score(model: Model, cam, q, image: np.ndarray) -> float | None:
+    """The share of points along the projected link axes that land on the image's foreground
+    (brighter than Otsu's threshold), or None when the image is flat or no point lands inside."""
+    if image is None or image.ndim != 2 or image.dtype != np.uint8 or int(image.max()) == int(image.min()):
+        return None
+    pose = forward(model, q)
+    f = np.linspace(0.15, 0.85, 5)[None, :, None]
+    start, end = np.asarray(pose.link_start)[:, None], np.asarray(pose.link_end)[:, None]
+    px = np.asarray(cam.project((start + f * (end - start)).reshape(-1, 3))[0])
+    h, w = image.shape
+    inside = (px[:, 0] >= 0) & (px[:, 0] <= w - 1) & (px[:, 1] >= 0) & (px[:, 1] <= h - 1)
+    if not inside.any():
+        return 0.0
+    level, _ = cv2.threshold(image, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    xy = np.round(px[inside]).astype(int)
+    return float(np.mean(image[xy[:, 1], xy[:, 0]] > level)) * float(inside.mean())
+
+
+def _check_fit(model: Model, cameras, sources, q) -> None:
+    """Warn when a camera's projection of the initial pose does not fit its input's first frame
+    (cameras and inputs in the wrong order, or the wrong camera file); a cheap check."""
+    if not all(isinstance(s, FrameSource) for s in sources):   # an iterator would lose its first frame
+        return
+    images = _first_images(sources)
+    if images is None or len(images) != len(cameras):
+        return
+    score = [[_fit_score(model, cam, q, img) if cam.size == img.shape[1::-1] else None for img in images]
+             for cam in cameras]
+    for k in range(len(cameras)):
+        own = score[k][k]
+        if own is None or own >= 0.5:
+            continue
+        better = [j for j in range(len(images)) if j != k and score[k][j] is not None and score[k][j] > own + 0.25]
+        hint = (f"; it fits input {better[0]}'s frame better ({score[k][better[0]]:.0%}): are the inputs in the "
+                "order of the cameras?") if better else ": check the camera file, the input and the initial pose"
+        warnings.warn(f"camera {k}: only {own:.0%} of the model's projected link axes at the initial pose lie on "
+                      f"the bright foreground of input {k}'s first frame{hint}", JaxhandWarning, stacklevel=3)
+
+
+def _check_truth(model: Model, truth, n: int) -> np.ndarray:
+    try:
+        t = np.asarray(truth, float)
+    except (TypeError, ValueError) as err:
+        raise InputError(f"truth: cannot read as numbers ({err})") from None
+    if t.ndim != 2 or t.shape[1] != model.n_q:
+        raise InputError(f"truth: expected (frames, {model.n_q}) values for {model.name!r} "
+                         f"({', '.join(model.q_names)}), got shape {t.shape}: is it the truth of another model?")
+    if len(t) < n:
+        raise InputError(f"truth: {len(t)} frame(s) but the input has {n}: give the truth of this input "
+                         "(or --max-frames)")
+    return t
+
+
+class _Timings:
+    """Per-frame stage timings of this session's frames, in growing float arrays."""
+
+    def __init__(self):
+        self.data: dict[str, np.ndarray] = {}
+        self.n = 0
+
+    def add(self, timings) -> None:
+        for k, v in timings.items():
+            col = self.data.setdefault(k, np.zeros(256))
+            if len(col) <= self.n:
+                col = self.data[k] = np.concatenate([col, np.zeros(len(col))])
+            col[self.n] = v
+        self.n += 1
+
+    def steady(self) -> dict[str, np.ndarray]:
+        """Every stage's timings but the first frame's (which pays for compilation)."""
+        lo = 1 if self.n > 1 else 0
+        return {k: v[lo:self.n] for k, v in self.data.items()}
+
+
+def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, truth, video, progress, q0,
+         resumed) -> dict:
     vw = None
-    reports: list[StepReport] = []
-    first_loss = None
+    start = 0 if resumed is None else resumed["after_frame"] + 1
+    timings = _Timings()
+    count = 0
+    frame = start   # the frame being worked on
     started = time.perf_counter()
-    bar = tqdm(total=n, desc="tracking", unit="frame", disable=not (sys.stderr.isatty() if progress is None
-                                                                      else progress))
+    stop: BaseException | None = None
+    bar = tqdm(total=n, initial=min(start, n), desc="tracking", unit="frame",
+               disable=not (sys.stderr.isatty() if progress is None else progress))
+    video_name = "overlay.mp4" if resumed is None else f"overlay_from_{start:04d}.mp4"
     try:
         for frames in zip(*sources):
-            if frames[0].index >= n:
+            frame = frames[0].index
+            if frame >= n:
                 break
+            if frame < start:
+                continue
             bad = [f.error for f in frames if f.image is None]
             if bad:
-                writer.skip(frames[0].index, "; ".join(bad))
-                print(f"jaxhand track: skipping frame {frames[0].index}: {'; '.join(bad)}", file=sys.stderr)
+                writer.skip(frame, "; ".join(bad))
+                print(f"jaxhand track: skipping frame {frame}: {'; '.join(bad)}", file=sys.stderr)
                 bar.update(1)
                 continue
             images = [f.image for f in frames]
-            state, rep = tracker.step(state, images, frames[0].index, frames[0].time_s)
-            reports.append(rep)
-            if rep.lost and first_loss is None:
-                first_loss = rep.frame
+            state, rep = tracker.step(state, images, frame, frames[0].time_s)
+            count += 1
+            timings.add(rep.timings_s)
             writer.write(rep.frame, rep.time_s, rep.q_filtered, rep.confidence, rep.lost, q_pred=rep.q_pred,
                          q_solved=rep.q_solved, cost=rep.cost, rms_px=rep.rms_px, iterations=rep.iterations)
             if video:
                 tile = _overlay(model, cameras, images, rep)
                 if vw is None:
-                    vw = VideoWriter(out / "overlay.mp4", fps, tile.shape[1::-1])
+                    vw = VideoWriter(out / video_name, fps, tile.shape[1::-1])
                 vw.write(tile)
-                if len(reports) == 1 or rep.frame % max(1, n // 4) == 0:
+                if count == 1 or rep.frame % max(1, n // 4) == 0:
                     cv2.imwrite(str(out / f"overlay_{rep.frame:04d}.png"), tile)
             bar.update(1)
+        else:
+            frame = n
+    except KeyboardInterrupt as err:
+        stop = err
+    except InputError as err:
+        if not isinstance(err.__cause__, OSError):
+            raise
+        stop = err   # the folder cannot be written (a full disk): finish what can be finished
     finally:
         bar.close()
         if vw is not None:
             vw.close()
     elapsed = time.perf_counter() - started
-    summary: dict = {"frames": len(reports), "fps_input": fps, "config": config_to_dict(config),
+    summary = _summary(model, cameras, tracker, state, writer, out, fps, config, truth, q0, timings, count,
+                       elapsed, resumed)
+    if stop is not None:
+        summary.update({"interrupted": True, "interrupted_at_frame": int(frame),
+                        "stopped_by": "interrupt" if isinstance(stop, KeyboardInterrupt) else str(stop)})
+        done = f"{len(writer)} finished frame(s) in {out} are kept"
+        if isinstance(stop, KeyboardInterrupt):
+            try:
+                writer.close(summary)
+            except InputError:
+                pass
+            raise KeyboardInterrupt(f"stopped at frame {frame}; the {done}: rerun with --resume to continue") \
+                from None
+        with contextlib.suppress(InputError):
+            writer.close(summary)
+        raise InputError(f"{stop}; stopped at frame {frame}: make room and rerun with --resume") from stop
+    summary["interrupted"] = False
+    return writer.close(summary)
+
+
+def _summary(model, cameras, tracker, state, writer, out, fps, config, truth, q0, timings, count, elapsed,
+             resumed) -> dict:
+    cols = writer.arrays()
+    summary: dict = {"frames": len(writer), "fps_input": fps, "config": config_to_dict(config),
                      "front_end": type(tracker.frontend).__name__,
                      "theta_per_frame": tracker.theta,
                      "initial_pose": pose_to_dict(model, q0)}
-    if reports:
-        stages = sorted({k for r in reports for k in r.timings_s})
-        steady = reports[1:] if len(reports) > 1 else reports  # the first frame pays for compilation
+    if resumed is not None:
+        summary["resumed"] = {**resumed, "frames_this_run": count}
+    if count:
+        steady = timings.steady()
+        top = [k for k in steady if "." not in k]
         summary.update({
             "wall_s": elapsed,
-            "frames_per_second_end_to_end": len(reports) / elapsed,
-            "frames_per_second_steady": len(steady) / sum(sum(v for k, v in r.timings_s.items() if "." not in k)
-                                                         for r in steady),
-            "median_ms_per_stage": {k: 1e3 * float(np.median([r.timings_s.get(k, 0.0) for r in steady]))
-                                    for k in stages},
-            "frames_before_first_loss": first_loss if first_loss is not None else len(reports),
-            "lost_frames": int(sum(r.lost for r in reports)),
-            "mean_confidence": float(np.mean([r.confidence for r in reports])),
-            "mean_iterations": float(np.mean([r.iterations for r in reports])),
+            "frames_per_second_end_to_end": count / elapsed,
+            "frames_per_second_steady": len(steady[top[0]]) / float(sum(steady[k].sum() for k in top)),
+            "median_ms_per_stage": {k: 1e3 * float(np.median(steady[k])) for k in sorted(steady)},
         })
-        idx = np.array([r.frame for r in reports])
-        q_f = np.stack([r.q_filtered for r in reports])
-        q_s = np.stack([r.q_solved for r in reports])
-        times = np.array([r.time_s for r in reports])
+    if len(writer):
+        lost = cols["lost"].astype(bool)
+        summary.update({
+            "frames_before_first_loss": int(cols["frame"][np.argmax(lost)]) if lost.any() else len(writer),
+            "lost_frames": int(lost.sum()),
+            "mean_confidence": float(np.mean(cols["confidence"])),
+            "mean_iterations": float(np.mean(cols["iterations"])),
+        })
+        idx, q_f, q_s, times = cols["frame"], cols["q"], cols["q_solved"], cols["time_s"]
         q_t = None if truth is None else np.asarray(truth)[idx]
         if q_t is not None:
             summary["accuracy_filtered"] = accuracy_summary(model, cameras, q_f, q_t)
@@ -192,4 +379,4 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
     if radius is not None:   # the front end's phalanx width estimate (ImageConfig.width_gain)
         summary["link_radius_mm_estimated"] = dict(zip(model.link_names, np.asarray(radius, float).tolist()))
         summary["link_radius_mm_model"] = dict(zip(model.link_names, np.asarray(model.link_radius_mm).tolist()))
-    return writer.close(summary)
+    return summary

@@ -92,6 +92,12 @@ class Tracker:
                  dt_s: float = 1 / 25):
         if not isinstance(frontend, AbstractFrontEnd):
             raise InputError(f"frontend: expected an AbstractFrontEnd, got {type(frontend).__name__}")
+        if model.n_links == 0:
+            raise InputError(f"model {model.name!r} has no link pills: the tracker measures the edges and tips of "
+                             "links, so give the moving frames a link (link = {{ axis, length_mm, radius_mm }})")
+        if model.n_q == 0:
+            raise InputError(f"model {model.name!r} has no moving joint and a fixed base: there is nothing to track "
+                             "(make a joint revolute or prismatic, or the base planar or free)")
         self.model, self.cameras, self.frontend = model, as_rig(cameras), frontend
         self.config = config = TrackConfig() if config is None else config
         if not dt_s > 0:
