@@ -156,6 +156,11 @@ def validate_features(model: Model, cameras: Camera | tuple[Camera, ...], featur
         InputError: naming the camera, the field and the problem.
     """
     rig = as_rig(cameras)
+    if not isinstance(features, Features) and not (isinstance(features, (tuple, list))
+                                                   and all(isinstance(f, Features) for f in features)):
+        raise InputError(f"features: expected a jaxhand.Features (or a tuple of one per camera), got "
+                         f"{type(features).__name__}: build them with jaxhand.features_from_pose, "
+                         "jaxhand.extract_features or Features(lines=..., line_valid=..., ...)")
     feats = (features,) if isinstance(features, Features) else tuple(features)
     if len(feats) != len(rig):
         raise InputError(f"features: expected one Features per camera ({len(rig)}), got {len(feats)}")

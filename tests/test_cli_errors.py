@@ -65,3 +65,10 @@ def test_infinite_or_nan_limits_are_refused_on_load(tmp_path, limits):
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(jh.ModelFileError, match=r"field 'limits' must be finite.*\[-180, 180\] deg"):
         jh.load_model(path)
+
+
+def test_fit_given_a_plain_array_as_features_says_what_to_pass():
+    model = jh.builtin_model("index")
+    cam = jh.Orthographic.fit(np.asarray(jh.forward(model, model.q_default).link_end))
+    with pytest.raises(jh.InputError, match="features: expected a jaxhand.Features .* got ndarray"):
+        jh.fit(model, cam, np.zeros((3, 3)), model.q_default)
