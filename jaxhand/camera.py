@@ -32,6 +32,12 @@ __all__ = ["Orthographic", "Perspective", "Camera", "as_rig", "load_camera", "sa
 _MIN_DEPTH_MM = 1e-6
 
 
+def _floats(x) -> Array:
+    """A camera's numbers as a float array: integers (a centre given as ``(160, 120)``) become floats."""
+    x = jnp.asarray(x)
+    return x if jnp.issubdtype(x.dtype, jnp.floating) else x.astype(float)
+
+
 def _size(size) -> tuple[int, int]:
     try:
         w, h = (float(v) for v in size)
@@ -48,10 +54,10 @@ class Orthographic(eqx.Module):
     Static: ``size`` (width, height) in pixels. Traced: ``R``, ``t``, ``scale``, ``center``.
     """
 
-    R: Float[Array, "3 3"] = eqx.field(converter=jnp.asarray)
-    t: Float[Array, 3] = eqx.field(converter=jnp.asarray)
-    scale: Float[Array, ""] = eqx.field(converter=jnp.asarray)
-    center: Float[Array, 2] = eqx.field(converter=jnp.asarray)
+    R: Float[Array, "3 3"] = eqx.field(converter=_floats)
+    t: Float[Array, 3] = eqx.field(converter=_floats)
+    scale: Float[Array, ""] = eqx.field(converter=_floats)
+    center: Float[Array, 2] = eqx.field(converter=_floats)
     size: tuple[int, int] = eqx.field(static=True, converter=_size)
 
     def to_camera(self, p_world: Float[ArrayLike, "*n 3"]) -> Float[Array, "*n 3"]:
@@ -101,9 +107,9 @@ class Perspective(eqx.Module):
     Static: ``size`` (width, height). Traced: ``K``, ``R``, ``t``.
     """
 
-    K: Float[Array, "3 3"] = eqx.field(converter=jnp.asarray)
-    R: Float[Array, "3 3"] = eqx.field(converter=jnp.asarray)
-    t: Float[Array, 3] = eqx.field(converter=jnp.asarray)
+    K: Float[Array, "3 3"] = eqx.field(converter=_floats)
+    R: Float[Array, "3 3"] = eqx.field(converter=_floats)
+    t: Float[Array, 3] = eqx.field(converter=_floats)
     size: tuple[int, int] = eqx.field(static=True, converter=_size)
 
     def to_camera(self, p_world: Float[ArrayLike, "*n 3"]) -> Float[Array, "*n 3"]:

@@ -12,13 +12,15 @@ from __future__ import annotations
 import dataclasses
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
 import numpy as np
+from jaxtyping import ArrayLike, Float
 from tqdm import tqdm
 
-from ..camera import as_rig
+from ..camera import Camera, as_rig
 from ..image import ImageState
 from ..io import ResultWriter, pose_to_dict
 from ..kinematics import forward, project_pose
@@ -53,7 +55,8 @@ def _overlay(model: Model, cameras, images, report: StepReport) -> np.ndarray:
     return np.hstack([cv2.copyMakeBorder(t, 0, h - t.shape[0], 0, 0, cv2.BORDER_CONSTANT) for t in tiles])
 
 
-def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarray) -> dict:
+def accuracy_summary(model: Model, cameras: Camera | Sequence[Camera], q_est: Float[ArrayLike, "frames nq"],
+                     q_truth: Float[ArrayLike, "frames nq"]) -> dict:
     """Joint errors (deg) and 2-D tip errors (px) of estimates against ground truth.
 
     The joint errors cover the revolute joints other than the palm's. The palm's own entries
@@ -61,6 +64,7 @@ def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarr
     per entry), and a free base's orientation ``palm_rotation_deg``, the angle of the rotation
     between the estimated and the true palm (quaternions, either sign).
     """
+    q_est, q_truth = np.asarray(q_est, float), np.asarray(q_truth, float)
     err = np.abs(q_est - q_truth)
     angle = model.is_angle
     err_user = np.where(angle, np.degrees(err), err)
