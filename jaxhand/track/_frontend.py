@@ -64,7 +64,7 @@ class AbstractFrontEnd(abc.ABC):
         """Features of frame ``frame`` (its ``images``, one per camera) searched around the state
         ``q_start``, given the front end's ``state`` (None before the first frame)."""
 
-    def refresh(self, images: Sequence[np.ndarray | None], q: np.ndarray, state: Any) -> Any:
+    def refresh(self, images: Sequence[np.ndarray | None], q: np.ndarray | None, state: Any) -> Any:
         """The front end's state updated at the solved pose ``q`` (after a frame not lost)."""
         return state
 
