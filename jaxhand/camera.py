@@ -22,7 +22,7 @@ import cv2
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from ._errors import CameraError
 
@@ -30,6 +30,12 @@ __all__ = ["Orthographic", "Perspective", "Camera", "as_rig", "load_camera", "sa
 
 # Points closer to a perspective camera than this (mm) are clamped so projection stays finite.
 _MIN_DEPTH_MM = 1e-6
+
+
+def _floats(x) -> Array:
+    """A camera's numbers as a float array: integers (a centre given as ``(160, 120)``) become floats."""
+    x = jnp.asarray(x)
+    return x if jnp.issubdtype(x.dtype, jnp.floating) else x.astype(float)
 
 
 def _size(size) -> tuple[int, int]:
@@ -48,26 +54,26 @@ class Orthographic(eqx.Module):
     Static: ``size`` (width, height) in pixels. Traced: ``R``, ``t``, ``scale``, ``center``.
     """
 
-    R: Float[Array, "3 3"] = eqx.field(converter=jnp.asarray)
-    t: Float[Array, 3] = eqx.field(converter=jnp.asarray)
-    scale: Float[Array, ""] = eqx.field(converter=jnp.asarray)
-    center: Float[Array, 2] = eqx.field(converter=jnp.asarray)
+    R: Float[Array, "3 3"] = eqx.field(converter=_floats)
+    t: Float[Array, 3] = eqx.field(converter=_floats)
+    scale: Float[Array, ""] = eqx.field(converter=_floats)
+    center: Float[Array, 2] = eqx.field(converter=_floats)
     size: tuple[int, int] = eqx.field(static=True, converter=_size)
 
-    def to_camera(self, p_world: Float[Array, "*n 3"]) -> Float[Array, "*n 3"]:
+    def to_camera(self, p_world: Float[ArrayLike, "*n 3"]) -> Float[Array, "*n 3"]:
         return p_world @ self.R.T + self.t
 
-    def project(self, p_world: Float[Array, "*n 3"]) -> tuple[Float[Array, "*n 2"], Float[Array, " *n"]]:
+    def project(self, p_world: Float[ArrayLike, "*n 3"]) -> tuple[Float[Array, "*n 2"], Float[Array, " *n"]]:
         """Pixels and depth (mm) of world points."""
         p = self.to_camera(p_world)
         return self.scale * p[..., :2] + self.center, p[..., 2]
 
-    def unproject(self, pixels: Float[Array, "*n 2"], depth: Float[Array, " *n"]) -> Float[Array, "*n 3"]:
+    def unproject(self, pixels: Float[ArrayLike, "*n 2"], depth: Float[ArrayLike, " *n"]) -> Float[Array, "*n 3"]:
         """World points at the given pixels and depths (inverse of :meth:`project`)."""
         p = jnp.concatenate([(pixels - self.center) / self.scale, depth[..., None]], axis=-1)
         return (p - self.t) @ self.R
 
-    def pixel_jacobian(self, p_world: Float[Array, "*n 3"]) -> Float[Array, "*n 2 3"]:
+    def pixel_jacobian(self, p_world: Float[ArrayLike, "*n 3"]) -> Float[Array, "*n 2 3"]:
         """d pixel / d p_world at each point."""
         J = self.scale * self.R[:2]
         return jnp.broadcast_to(J, p_world.shape[:-1] + (2, 3))
@@ -101,15 +107,15 @@ class Perspective(eqx.Module):
     Static: ``size`` (width, height). Traced: ``K``, ``R``, ``t``.
     """
 
-    K: Float[Array, "3 3"] = eqx.field(converter=jnp.asarray)
-    R: Float[Array, "3 3"] = eqx.field(converter=jnp.asarray)
-    t: Float[Array, 3] = eqx.field(converter=jnp.asarray)
+    K: Float[Array, "3 3"] = eqx.field(converter=_floats)
+    R: Float[Array, "3 3"] = eqx.field(converter=_floats)
+    t: Float[Array, 3] = eqx.field(converter=_floats)
     size: tuple[int, int] = eqx.field(static=True, converter=_size)
 
-    def to_camera(self, p_world: Float[Array, "*n 3"]) -> Float[Array, "*n 3"]:
+    def to_camera(self, p_world: Float[ArrayLike, "*n 3"]) -> Float[Array, "*n 3"]:
         return p_world @ self.R.T + self.t
 
-    def project(self, p_world: Float[Array, "*n 3"]) -> tuple[Float[Array, "*n 2"], Float[Array, " *n"]]:
+    def project(self, p_world: Float[ArrayLike, "*n 3"]) -> tuple[Float[Array, "*n 2"], Float[Array, " *n"]]:
         """Pixels and depth (mm) of world points; points behind the camera get clamped depth."""
         p = self.to_camera(p_world)
         u = p @ self.K.T
@@ -118,12 +124,12 @@ class Perspective(eqx.Module):
         w = jnp.where(u[..., 2] > _MIN_DEPTH_MM, u[..., 2], _MIN_DEPTH_MM)
         return u[..., :2] / w[..., None], p[..., 2]
 
-    def unproject(self, pixels: Float[Array, "*n 2"], depth: Float[Array, " *n"]) -> Float[Array, "*n 3"]:
+    def unproject(self, pixels: Float[ArrayLike, "*n 2"], depth: Float[ArrayLike, " *n"]) -> Float[Array, "*n 3"]:
         ray = jnp.concatenate([pixels, jnp.ones_like(pixels[..., :1])], axis=-1) @ jnp.linalg.inv(self.K).T
         p = ray / ray[..., 2:3] * depth[..., None]
         return (p - self.t) @ self.R
 
-    def pixel_jacobian(self, p_world: Float[Array, "*n 3"]) -> Float[Array, "*n 2 3"]:
+    def pixel_jacobian(self, p_world: Float[ArrayLike, "*n 3"]) -> Float[Array, "*n 2 3"]:
         u = self.to_camera(p_world) @ self.K.T
         pix = u[..., :2] / u[..., 2:3]
         d_pix_d_pcam = (self.K[:2] - pix[..., :, None] * self.K[2]) / u[..., 2:3, None]

@@ -17,7 +17,7 @@ import types
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, ArrayLike, Bool, Float
 
 from ._errors import InputError
 from .camera import Camera, as_rig
@@ -68,7 +68,7 @@ def empty_features(model: Model) -> Features:
                     tip_weight=jnp.ones(model.n_tips))
 
 
-def line_through(p0: Float[Array, "*n 2"], p1: Float[Array, "*n 2"]) -> Float[Array, "*n 3"]:
+def line_through(p0: Float[ArrayLike, "*n 2"], p1: Float[ArrayLike, "*n 2"]) -> Float[Array, "*n 3"]:
     """(a, b, rho) of the line through p0 and p1, unit normal rotated +90 deg from p1 - p0.
 
     A zero-length segment gives the (finite) line (1, 0, p0.x); callers mark it invalid.

@@ -54,7 +54,7 @@ def dh_transforms(model: Model, q: Float[ArrayLike, " nq"]) -> Float[Array, "fra
     return T
 
 
-def quat_to_rotation(quat: Float[Array, 4]) -> Float[Array, "3 3"]:
+def quat_to_rotation(quat: Float[ArrayLike, 4]) -> Float[Array, "3 3"]:
     """Rotation matrix of a (w, x, y, z) quaternion, normalised first (zero maps to identity)."""
     n = jnp.linalg.norm(quat)
     # Guard: a zero quaternion has no direction; use the identity (both branches finite).
@@ -182,7 +182,7 @@ def all_pills(model: Model, pose: Pose) -> Pills:
                  radius_mm=jnp.concatenate([radius, occ.radius_mm], -1))
 
 
-def link_points(pose: Pose, fractions: Float[Array, " k"]) -> Float[Array, "links k 3"]:
+def link_points(pose: Pose, fractions: Float[ArrayLike, " k"]) -> Float[Array, "links k 3"]:
     """Points at the given fractions (0 = start, 1 = end) along every link axis."""
     f = jnp.asarray(fractions)[None, :, None]
     return pose.link_start[:, None] + f * (pose.link_end - pose.link_start)[:, None]

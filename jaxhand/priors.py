@@ -18,7 +18,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from ._errors import InputError
 from .model import Model
@@ -51,7 +51,7 @@ class DipPipCoupling(eqx.Module):
         if self.ratio.shape != (n,) or self.weight.shape != (n,):
             raise ValueError(f"DipPipCoupling: ratio and weight need shape ({n},)")
 
-    def __call__(self, q: Float[Array, " nq"]) -> Float[Array, " fingers"]:
+    def __call__(self, q: Float[ArrayLike, " nq"]) -> Float[Array, " fingers"]:
         """Residuals ``weight * (q_dip - ratio * q_pip)`` (unitless when weight is 1/sigma)."""
         pip = q[np.array(self.pip_index, dtype=int)]
         dip = q[np.array(self.dip_index, dtype=int)]
@@ -112,7 +112,7 @@ class SoftLimits(eqx.Module):
             if getattr(self, name).shape != (k,):
                 raise ValueError(f"SoftLimits.{name}: expected shape ({k},), got {getattr(self, name).shape}")
 
-    def __call__(self, q: Float[Array, " nq"]) -> Float[Array, " k"]:
+    def __call__(self, q: Float[ArrayLike, " nq"]) -> Float[Array, " k"]:
         """Residuals ``weight * (relu(q - upper - margin) - relu(lower - margin - q))``.
 
         Positive above the upper limit, negative below the lower one, exactly 0 in between; the
@@ -155,7 +155,7 @@ def soft_limits(model: Model, *, weight: float = 1.0 / np.radians(2.0), margin: 
                       margin=jnp.full((k,), margin, dtype), weight=jnp.full((k,), weight, dtype))
 
 
-def stack_priors(priors, q: Float[Array, " nq"]) -> Float[Array, " r"]:
+def stack_priors(priors, q: Float[ArrayLike, " nq"]) -> Float[Array, " r"]:
     """The residuals of several priors, concatenated in order (an empty tuple gives shape (0,))."""
     parts = [p(q) for p in priors]
     return jnp.concatenate(parts) if parts else jnp.zeros((0,), q.dtype)
@@ -180,7 +180,7 @@ class TemporalPrior(eqx.Module):
         if n < 0 or self.weight.shape not in ((n,), (n, n)):
             raise ValueError("TemporalPrior: q_pred needs shape (nq,) and weight (nq,) or (nq, nq)")
 
-    def __call__(self, q: Float[Array, " nq"]) -> Float[Array, " nq"]:
+    def __call__(self, q: Float[ArrayLike, " nq"]) -> Float[Array, " nq"]:
         d = q - self.q_pred
         return self.weight @ d if self.weight.ndim == 2 else self.weight * d
 

@@ -128,7 +128,7 @@ def _stack_residuals(feats: Features, tips_px, pts_px) -> Float[Array, " r"]:
 
 
 def feature_distances(model: Model, cameras: tuple, features: tuple, q: Float[ArrayLike, " nq"],
-                      fractions: Float[Array, " K"]) -> tuple[tuple[Float[Array, " links"], Float[Array, " tips"]],
+                      fractions: Float[ArrayLike, " K"]) -> tuple[tuple[Float[Array, " links"], Float[Array, " tips"]],
                                                                ...]:
     """Per camera, each link line's largest distance (px) to the model's link points and each
     tip's distance (px) to the model's tip at state q, unweighted, 0 where a feature is invalid
@@ -175,8 +175,8 @@ def _quat_rate(quat: Float[Array, 4]) -> Float[Array, "3 4"]:
     return jnp.where(n > 0, 2.0 * E / safe, 0.0)
 
 
-def point_jacobian(model: Model, q: Float[ArrayLike, " nq"], frames: Float[Array, "frames 4 4"],
-                   points: Float[Array, "p 3"], attached: np.ndarray) -> Float[Array, "p 3 nq"]:
+def point_jacobian(model: Model, q: Float[ArrayLike, " nq"], frames: Float[ArrayLike, "frames 4 4"],
+                   points: Float[ArrayLike, "p 3"], attached: np.ndarray) -> Float[Array, "p 3 nq"]:
     """d p_world / d q of world points rigidly attached to frames, from the joint axes
     (the geometric Jacobian, DigitEyes eqs. 8-10), mm per q unit.
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import equinox as eqx
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, ArrayLike, Bool, Float
 
 __all__ = ["GHKState", "ghk_gains", "ghk_init", "ghk_predict", "ghk_update"]
 
@@ -51,7 +51,7 @@ def ghk_predict(state: GHKState, dt_s) -> GHKState:
     return GHKState(x=state.x + state.v * dt_s + 0.5 * state.a * dt_s**2, v=state.v + state.a * dt_s, a=state.a)
 
 
-def ghk_update(predicted: GHKState, y, theta, dt_s, valid: Bool[Array, " n"] | bool = True) -> GHKState:
+def ghk_update(predicted: GHKState, y, theta, dt_s, valid: Bool[ArrayLike, " n"] | bool = True) -> GHKState:
     """Correct the prediction with measurement y (eqs. 5.1-5.3); entries with valid=False keep it."""
     g, h, k = ghk_gains(theta)
     e = jnp.where(valid, jnp.asarray(y) - predicted.x, 0.0)

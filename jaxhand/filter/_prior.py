@@ -34,7 +34,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 import jax.scipy.linalg as jsl
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, ArrayLike, Bool, Float
 
 __all__ = ["PriorState", "prior_init", "prior_predict", "prior_update", "prior_update_map", "prior_residuals",
            "prior_information", "solve_information"]
@@ -75,7 +75,7 @@ def _sym(P):
     return 0.5 * (P + jnp.swapaxes(P, -1, -2))
 
 
-def prior_init(q0: Float[Array, " n"], sigma_q, sigma_v, v0: Float[Array, " n"] | None = None) -> PriorState:
+def prior_init(q0: Float[ArrayLike, " n"], sigma_q, sigma_v, v0: Float[ArrayLike, " n"] | None = None) -> PriorState:
     """A state at ``q0`` (velocity ``v0``, default 0) with diagonal covariance.
 
     Args:
@@ -136,8 +136,8 @@ def _joseph(state: PriorState, G, K, lam):
     return _sym(IKH @ state.P @ IKH.T + G @ lam @ G.T)
 
 
-def prior_update(state: PriorState, z: Float[Array, " n"], information: Float[Array, "n n"],
-                 valid: Bool[Array, " n"] | bool = True) -> PriorState:
+def prior_update(state: PriorState, z: Float[ArrayLike, " n"], information: Float[ArrayLike, "n n"],
+                 valid: Bool[ArrayLike, " n"] | bool = True) -> PriorState:
     """Correct the prediction with the solve's estimate ``z`` and its information.
 
     Args:
@@ -158,8 +158,8 @@ def prior_update(state: PriorState, z: Float[Array, " n"], information: Float[Ar
     return PriorState(x=x, P=_joseph(state, G, K, lam))
 
 
-def prior_update_map(state: PriorState, q_map: Float[Array, " n"], information: Float[Array, "n n"],
-                     valid: Bool[Array, " n"] | bool = True, *, jitter=1e-12) -> PriorState:
+def prior_update_map(state: PriorState, q_map: Float[ArrayLike, " n"], information: Float[ArrayLike, "n n"],
+                     valid: Bool[ArrayLike, " n"] | bool = True, *, jitter=1e-12) -> PriorState:
     """The posterior after a solve that already included :func:`prior_residuals`.
 
     The MAP solve returns the posterior q; the velocity follows by conditioning on it
@@ -181,7 +181,7 @@ def prior_update_map(state: PriorState, q_map: Float[Array, " n"], information: 
     return PriorState(x=state.x + jnp.concatenate([dq, dv]), P=_joseph(state, G, K, lam))
 
 
-def prior_residuals(q: Float[Array, " n"], state: PriorState, *, jitter=1e-12) -> Float[Array, " n"]:
+def prior_residuals(q: Float[ArrayLike, " n"], state: PriorState, *, jitter=1e-12) -> Float[Array, " n"]:
     """Prior residuals ``C^-1 (q - q_pred)`` with ``C C^T = P_qq + jitter I`` (unitless).
 
     Stacked under the image residuals (weighted as ``1/sigma``), a least-squares solve then
@@ -207,7 +207,7 @@ def prior_information(state: PriorState, *, jitter=1e-12) -> Float[Array, "n n"]
     return _sym(jsl.cho_solve((C, True), eye))
 
 
-def solve_information(J: Float[Array, "r n"], sigma_px) -> Float[Array, "n n"]:
+def solve_information(J: Float[ArrayLike, "r n"], sigma_px) -> Float[Array, "n n"]:
     """``J^T J / sigma^2``: the Gauss-Newton information of a solve's (weighted) residuals.
 
     Args:

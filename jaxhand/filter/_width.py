@@ -13,13 +13,13 @@ of the mean; a phalanx with none keeps its prediction.
 from __future__ import annotations
 
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, ArrayLike, Bool, Float
 
 __all__ = ["width_update"]
 
 
-def width_update(p_pred: Float[Array, " links"], measures: Float[Array, "links n"], valid: Bool[Array, "links n"],
-                 g) -> Float[Array, " links"]:
+def width_update(p_pred: Float[ArrayLike, " links"], measures: Float[ArrayLike, "links n"],
+                 valid: Bool[ArrayLike, "links n"], g) -> Float[Array, " links"]:
     """One appendix-E update of each link's width from its profiles' width measures."""
     count = jnp.sum(valid, axis=-1)
     total = jnp.sum(jnp.where(valid, measures, 0.0), axis=-1)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Sequence
+from typing import no_type_check
 
 import numpy as np
 import shapely
@@ -186,6 +187,7 @@ def layout(config: ImageConfig) -> tuple[int, int, float]:
     return (s.per_link, s.points, float(s.scope))
 
 
+@no_type_check   # the front end's argument checks (InputError naming the argument), which a checker would preempt
 def prepare(images, model: Model, cameras, q, config: ImageConfig | None, name: str):
     """The entry points' checks: (config, rig, grey images, q, chain)."""
     config = ImageConfig() if config is None else config

@@ -19,6 +19,7 @@ re-acquisition and widths have modules of their own.
 from __future__ import annotations
 
 import dataclasses
+from typing import no_type_check
 
 import jax
 import numpy as np
@@ -37,6 +38,7 @@ from .searches import TEMPLATE_SEARCHES, search_named
 __all__ = ["extract_features"]
 
 
+@no_type_check   # validates its arguments itself (InputError naming the argument), which a checker would preempt
 def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig | None = None,
                      state: ImageState | None = None) -> tuple[tuple[Features, ...], Diagnostics]:
     """Link lines and tip points of every camera's image, searched around the predicted pose.

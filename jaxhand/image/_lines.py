@@ -64,7 +64,7 @@ def ransac_pca(points: np.ndarray, valid: np.ndarray, tau_px: float, min_inliers
     cov = np.where(ok[..., None, None], cov, np.eye(2))  # Guard: dummy covariance where there is no line.
     _, vecs = np.linalg.eigh(cov)
     v = vecs[..., :, 1]  # eigh sorts eigenvalues ascending: the last column is the main direction
-    return np.where(ok[..., None], mu, 0.0), np.where(ok[..., None], v, [1.0, 0.0]), ok, inliers
+    return np.where(ok[..., None], mu, 0.0), np.where(ok[..., None], v, [1.0, 0.0]), np.asarray(ok), inliers
 
 
 def axial_line(p1: np.ndarray, v1: np.ndarray, p2: np.ndarray, v2: np.ndarray, det_eps: float = 1e-9

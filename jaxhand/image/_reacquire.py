@@ -193,7 +193,7 @@ def reacquire(ctx: CameraContext, q: np.ndarray, obs: Observation, view: View) -
         tf = find_tips(ctx, turns.observe(i), line_ok, p_ax, v_ax)
         ctx.clock.lap("tips")
         t = model.tip_links.index(link)
-        return tf.tips[t], tf.valid[t]
+        return tf.tips[t], bool(tf.valid[t])
 
     return take_best_turns(ctx, view, links, found.valid, found.inliers.sum(axis=(1, 2)),
                            lambda i: {k: getattr(found, k)[i] for k in TURN_FIELDS}, tip)
@@ -208,7 +208,7 @@ def reacquire_full(ctx: CameraContext, q: np.ndarray, obs: Observation, view: Vi
 
     def tip(i: int, link: int) -> tuple[np.ndarray, bool]:
         t = ctx.model.tip_links.index(link)
-        return views[i].tips.tips[t], views[i].tips.valid[t]
+        return views[i].tips.tips[t], bool(views[i].tips.valid[t])
 
     return take_best_turns(ctx, view, links, np.array([v.fit.valid[k] for v, k in zip(views, links)], bool),
                            np.array([v.fit.inliers[k].sum() for v, k in zip(views, links)], int),
@@ -229,7 +229,7 @@ def take_best_turns(ctx: CameraContext, view: View, links: np.ndarray, valid: np
         best, best_score = None, view.profiles.values.shape[1] - 1   # at least one inlier per sampler
         for i in np.flatnonzero(links == link):  # in the order the turns were made
             if valid[i] and score[i] > best_score:
-                best, best_score = i, score[i]
+                best, best_score = int(i), score[i]
         if best is None:
             continue
         reacquired[link] = True

@@ -28,7 +28,7 @@ def solve_2x2(R: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     safe = np.where(ok, det, 1.0)  # Guard: a singular system gets a dummy denominator, then zeros.
     c0 = (R[..., 1, 1] * r[..., 0] - R[..., 0, 1] * r[..., 1]) / safe
     c1 = (R[..., 0, 0] * r[..., 1] - R[..., 1, 0] * r[..., 0]) / safe
-    return np.where(ok[..., None], np.stack([c0, c1], -1), 0.0), ok
+    return np.where(ok[..., None], np.stack([c0, c1], -1), 0.0), np.asarray(ok)
 
 
 def _normal_equations(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -104,4 +104,4 @@ def imwplls(x: np.ndarray, ys: np.ndarray, weights: np.ndarray, mask: np.ndarray
         c = np.where(step[..., None], c_new, c)
         iters = iters + step
         active = step & moved
-    return c, ok, iters
+    return c, ok, np.asarray(iters)

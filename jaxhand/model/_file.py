@@ -61,6 +61,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from jaxtyping import ArrayLike
 
 from .._errors import ModelFileError
 from ._model import AXES, Model
@@ -74,14 +75,14 @@ def _short(x: float) -> float | int:
     return int(r) if r == int(r) and abs(r) < 1e15 else r
 
 
-def _clean(x: float) -> float | int:
+def _clean(x: ArrayLike) -> float | int:
     """A length or matrix entry for a file: shortened to 9 decimals where that is exact."""
     x = float(x)
     r = _short(x)
     return r if float(r) == x else x
 
 
-def _deg(x: float) -> float | int:
+def _deg(x: ArrayLike) -> float | int:
     """Degrees for a file whose ``math.radians`` gives back exactly ``x`` (rad) where such a value
     exists: the 9-decimal rounding, else ``math.degrees(x)`` or one of its 8 float neighbours."""
     x = float(x)

@@ -75,7 +75,7 @@ def load_urdf(path: str | Path, *, name: str | None = None, handedness: str = "n
         n = el.get("name")
         return ModelFileError(f"{src}: <{el.tag}{f' name={n!r}' if n else ''}>: {msg}")
 
-    def numbers(el: ET.Element, key: str, n: int, default: list[float]) -> np.ndarray:
+    def numbers(el: ET.Element | None, key: str, n: int, default: list[float]) -> np.ndarray:
         if el is None or key not in el.attrib:
             return np.asarray(default, float)
         try:

@@ -92,4 +92,4 @@ def frame_confidence(score, residual_rms_px, valid_share, config: ConfidenceConf
     c_valid = _ramp(v, config.valid_lost, config.valid_good)
     lost = ~finite | (s <= config.score_lost) | (r >= config.rms_lost_px) | (v <= config.valid_lost)
     confidence = np.where(lost, 0.0, np.minimum(np.minimum(c_score, c_rms), c_valid))
-    return confidence, lost
+    return confidence, np.asarray(lost)

@@ -58,7 +58,7 @@ class FilterConfig:
 
     enabled: bool = True
     theta: float = 0.85
-    theta_rate_hz: float = 25.0
+    theta_rate_hz: float | None = 25.0
     report_solve: bool = False
 
     def __post_init__(self):

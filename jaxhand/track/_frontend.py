@@ -59,11 +59,12 @@ class AbstractFrontEnd(abc.ABC):
     reextracts: ClassVar[bool] = True
 
     @abc.abstractmethod
-    def extract(self, images: Sequence[np.ndarray], q_start: np.ndarray, state: Any, frame: int) -> FrontEndResult:
+    def extract(self, images: Sequence[np.ndarray | None], q_start: np.ndarray, state: Any, frame: int
+                ) -> FrontEndResult:
         """Features of frame ``frame`` (its ``images``, one per camera) searched around the state
         ``q_start``, given the front end's ``state`` (None before the first frame)."""
 
-    def refresh(self, images: Sequence[np.ndarray], q: np.ndarray, state: Any) -> Any:
+    def refresh(self, images: Sequence[np.ndarray | None], q: np.ndarray | None, state: Any) -> Any:
         """The front end's state updated at the solved pose ``q`` (after a frame not lost)."""
         return state
 

@@ -14,6 +14,7 @@ import dataclasses
 import sys
 import time
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
@@ -21,11 +22,12 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import ArrayLike, Float
 from tqdm import tqdm
 
 from .. import kinematics
 from .._errors import InputError, JaxhandWarning
-from ..camera import Perspective, as_rig
+from ..camera import Camera, Perspective, as_rig
 from ..image import ImageState
 from ..io import FrameSource, ResultWriter, pose_to_dict
 from ..kinematics import forward, project_pose
@@ -67,7 +69,8 @@ def _tips_px(model: Model, cameras, q):
     return jnp.stack([c.project(tips)[0] for c in cameras])
 
 
-def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarray) -> dict:
+def accuracy_summary(model: Model, cameras: Camera | Sequence[Camera], q_est: Float[ArrayLike, "frames nq"],
+                     q_truth: Float[ArrayLike, "frames nq"]) -> dict:
     """Joint errors (deg) and 2-D tip errors (px) of estimates against ground truth.
 
     The joint errors cover the revolute joints other than the palm's. The palm's own entries
@@ -75,6 +78,7 @@ def accuracy_summary(model: Model, cameras, q_est: np.ndarray, q_truth: np.ndarr
     per entry), and a free base's orientation ``palm_rotation_deg``, the angle of the rotation
     between the estimated and the true palm (quaternions, either sign).
     """
+    q_est, q_truth = np.asarray(q_est, float), np.asarray(q_truth, float)
     err = np.abs(q_est - q_truth)
     angle = model.is_angle
     err_user = np.where(angle, np.degrees(err), err)

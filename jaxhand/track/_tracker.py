@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, no_type_check
 
 import jax
 import jax.numpy as jnp
@@ -88,6 +88,7 @@ class Tracker:
         dt_s: frame interval (s).
     """
 
+    @no_type_check   # validates its arguments itself (InputError naming the argument), which a checker would preempt
     def __init__(self, model: Model, cameras, frontend: AbstractFrontEnd, config: TrackConfig | None = None,
                  dt_s: float = 1 / 25):
         if not isinstance(frontend, AbstractFrontEnd):
@@ -143,7 +144,7 @@ class Tracker:
         q0 = validate_q(self.model, q0, name="initial pose", within_limits=True)
         return TrackState(ghk=ghk_init(jnp.asarray(q0)), frontend_state=frontend_state, q_last=q0)
 
-    def step(self, state: TrackState, images: Sequence[np.ndarray], frame: int = 0, time_s: float = 0.0
+    def step(self, state: TrackState, images: Sequence[np.ndarray | None], frame: int = 0, time_s: float = 0.0
              ) -> tuple[TrackState, StepReport]:
         """Process one frame (one image per camera; ``frame`` is passed to the front end).
 

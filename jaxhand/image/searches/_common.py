@@ -113,7 +113,7 @@ def parabola_vertex(ym: np.ndarray, y0: np.ndarray, yp: np.ndarray) -> np.ndarra
     den = ym - 2.0 * y0 + yp
     # Guard: a zero curvature (flat or linear triple) has no vertex; keep the integer position.
     off = np.where(np.abs(den) > 1e-12, 0.5 * (ym - yp) / np.where(np.abs(den) > 1e-12, den, 1.0), 0.0)
-    return np.clip(off, -0.5, 0.5)
+    return np.asarray(np.clip(off, -0.5, 0.5))
 
 
 def simple_derivative(values: np.ndarray, usable: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
