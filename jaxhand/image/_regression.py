@@ -13,7 +13,7 @@ import numpy as np
 __all__ = ["plls", "mwplls", "imwplls", "solve_2x2"]
 
 # |det R| (relative to the squared trace) below which the 2x2 normal equations count as singular.
-_SINGULAR = 1e-12
+SINGULAR = 1e-12
 
 
 def solve_2x2(R: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -24,14 +24,14 @@ def solve_2x2(R: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     det = R[..., 0, 0] * R[..., 1, 1] - R[..., 0, 1] * R[..., 1, 0]
     scale = (np.abs(R[..., 0, 0]) + np.abs(R[..., 1, 1])) ** 2
-    ok = np.abs(det) > _SINGULAR * np.maximum(scale, 1e-300)
+    ok = np.abs(det) > SINGULAR * np.maximum(scale, 1e-300)
     safe = np.where(ok, det, 1.0)  # Guard: a singular system gets a dummy denominator, then zeros.
     c0 = (R[..., 1, 1] * r[..., 0] - R[..., 0, 1] * r[..., 1]) / safe
     c1 = (R[..., 0, 0] * r[..., 1] - R[..., 1, 0] * r[..., 0]) / safe
     return np.where(ok[..., None], np.stack([c0, c1], -1), 0.0), np.asarray(ok)
 
 
-def _normal_equations(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def normal_equations(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """R = sum_i a_i [[1, x_i], [x_i, x_i^2]] and r = sum_i b_i [1, x_i] over the last axis."""
     R = np.stack([np.stack([a.sum(-1), (a * x).sum(-1)], -1),
                   np.stack([(a * x).sum(-1), (a * x * x).sum(-1)], -1)], -2)
@@ -51,7 +51,7 @@ def plls(x: np.ndarray, y: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np
     """
     w = mask.astype(float)
     x = np.broadcast_to(x, y.shape)
-    R, r = _normal_equations(x, w, w * np.where(mask, y, 0.0))
+    R, r = normal_equations(x, w, w * np.where(mask, y, 0.0))
     return solve_2x2(R, r)
 
 
@@ -77,7 +77,7 @@ def mwplls(x: np.ndarray, ys: np.ndarray, weights: np.ndarray, mask: np.ndarray)
     w = np.where(mask[..., None], weights, 0.0)
     sw = w.sum(-1)
     W = (w * ys).sum(-1) * sw
-    R, r = _normal_equations(np.broadcast_to(x, sw.shape), sw * sw, W)
+    R, r = normal_equations(np.broadcast_to(x, sw.shape), sw * sw, W)
     return solve_2x2(R, r)
 
 

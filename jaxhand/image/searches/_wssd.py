@@ -28,7 +28,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from .._config import SearchConfig
-from .._regression import _SINGULAR, _normal_equations, plls
+from .._regression import SINGULAR, normal_equations, plls
 from .._xy import clip_index
 from ._common import (
     Edges,
@@ -93,10 +93,10 @@ def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tupl
     # arithmetic as :func:`plls`, so the lines are bit for bit the same).
     w = curve_ok.astype(float)
     xb = np.broadcast_to(x, (L, M))
-    R, _ = _normal_equations(xb, w, w)
+    R, _ = normal_equations(xb, w, w)
     # solve_2x2's arithmetic with its matrix-only terms taken out of the loop (the same bits).
     det = R[..., 0, 0] * R[..., 1, 1] - R[..., 0, 1] * R[..., 1, 0]
-    ok = np.abs(det) > _SINGULAR * np.maximum((np.abs(R[..., 0, 0]) + np.abs(R[..., 1, 1])) ** 2, 1e-300)
+    ok = np.abs(det) > SINGULAR * np.maximum((np.abs(R[..., 0, 0]) + np.abs(R[..., 1, 1])) ** 2, 1e-300)
     safe = np.where(ok, det, 1.0)
     r00, r01, r10, r11 = R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1]
     flat, base = Wf.reshape(-1), row_starts(Wf.shape)
