@@ -164,7 +164,8 @@ def test_run_job_matches_the_single_command_and_compiles_once_per_structure(sequ
 def test_run_job_records_a_failure_without_raising(tmp_path):
     rec = run_job("x", ["track", str(tmp_path / "missing"), "--out", str(tmp_path / "x")], tmp_path / "x")
     assert rec["status"] == "failed" and rec["exit_code"] == 2 and rec["summary"] is None
-    assert rec["error"] == "jaxhand track: error: --model is required unless INPUT is a 'jaxhand synth' folder"
+    assert rec["error"] == ("jaxhand track: error: --model is required unless INPUT is a 'jaxhand synth' or a "
+                            "dev-set folder")
     saved = json.loads((tmp_path / "x" / "error.json").read_text())
     assert saved["error"] == rec["error"] and saved["argv"][-2:] == ["--out", str(tmp_path / "x")]
     rec = run_job("y", ["track", "--steps", "x"], tmp_path / "y")     # an argparse error exits

@@ -12,12 +12,12 @@ import numpy as np
 __all__ = ["finite_xy", "finite_last", "dot_xy", "norm_xy", "clip_index", "nan_to_num", "all_last"]
 
 
-def finite_xy(p: np.ndarray) -> np.ndarray:
+def finite_xy(p: np.ndarray | np.generic) -> np.ndarray | np.generic:
     """``np.all(np.isfinite(p), -1)`` for (..., 2) ``p``."""
     return np.isfinite(p[..., 0]) & np.isfinite(p[..., 1])
 
 
-def finite_last(p: np.ndarray) -> np.ndarray:
+def finite_last(p: np.ndarray | np.generic) -> np.ndarray | np.generic:
     """``np.all(np.isfinite(p), -1)`` for any short last axis."""
     out = np.isfinite(p[..., 0])
     for k in range(1, p.shape[-1]):
@@ -25,28 +25,28 @@ def finite_last(p: np.ndarray) -> np.ndarray:
     return out
 
 
-def dot_xy(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def dot_xy(a: np.ndarray, b: np.ndarray) -> np.ndarray | np.generic:
     """``np.sum(a * b, -1)`` for (..., 2) ``a`` and ``b``."""
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]
 
 
-def norm_xy(a: np.ndarray) -> np.ndarray:
+def norm_xy(a: np.ndarray) -> np.ndarray | np.generic:
     """``np.linalg.norm(a, axis=-1)`` for real (..., 2) ``a``."""
     return np.sqrt(a[..., 0] * a[..., 0] + a[..., 1] * a[..., 1])
 
 
-def clip_index(k: np.ndarray, lo: int, hi: int) -> np.ndarray:
+def clip_index(k: np.ndarray, lo: int, hi: int) -> np.ndarray | np.generic:
     """``np.clip`` of integer indices (without its per-call dtype checks)."""
     return np.minimum(np.maximum(k, lo), hi)
 
 
-def nan_to_num(x) -> np.ndarray:
+def nan_to_num(x) -> np.ndarray | np.generic:
     """``np.nan_to_num(x)`` (a copy), skipping its per-call type inspection when every entry is finite."""
     x = np.asarray(x)
     return x.copy() if np.isfinite(x).all() else np.nan_to_num(x)
 
 
-def all_last(b: np.ndarray) -> np.ndarray:
+def all_last(b: np.ndarray) -> np.ndarray | np.generic:
     """``np.all(b, -1)`` for a short last axis of booleans."""
     out = b[..., 0].copy()
     for k in range(1, b.shape[-1]):

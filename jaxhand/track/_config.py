@@ -148,12 +148,12 @@ class PriorConfig:
         soft_limit_margin_deg: traced, deg. Dead zone beyond each limit before the soft limit acts.
     """
 
-    temporal_sigma_deg: float = 0.0
-    temporal_sigma_mm: float = 0.0
-    information_ratio: float = 0.0
-    dip_pip_weight: float = 0.0
-    soft_limit_weight: float = 0.0
-    soft_limit_margin_deg: float = 0.0
+    temporal_sigma_deg: float | None = 0.0
+    temporal_sigma_mm: float | None = 0.0
+    information_ratio: float | None = 0.0
+    dip_pip_weight: float | None = 0.0
+    soft_limit_weight: float | None = 0.0
+    soft_limit_margin_deg: float | None = 0.0
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -161,7 +161,7 @@ class PriorConfig:
             _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
                   and value >= 0, f"prior.{f.name}", f"expected a finite number >= 0 (0: off), got {value!r}")
             object.__setattr__(self, f.name, float(value))
-        _need(not self.information_ratio or self.temporal_sigma_deg or self.temporal_sigma_mm,
+        _need(not self.information_ratio or bool(self.temporal_sigma_deg or self.temporal_sigma_mm),
               "prior.information_ratio", "weighs the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
 
     @property
