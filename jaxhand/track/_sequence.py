@@ -334,10 +334,8 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
                         "stopped_by": "interrupt" if isinstance(stop, KeyboardInterrupt) else str(stop)})
         done = f"{len(writer)} finished frame(s) in {out} are kept"
         if isinstance(stop, KeyboardInterrupt):
-            try:
+            with contextlib.suppress(InputError):   # a full disk too: the interruption is what to report
                 writer.close(summary)
-            except InputError:
-                pass
             raise KeyboardInterrupt(f"stopped at frame {frame}; the {done}: rerun with --resume to continue") \
                 from None
         with contextlib.suppress(InputError):
