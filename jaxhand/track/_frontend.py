@@ -51,7 +51,8 @@ class AbstractFrontEnd(abc.ABC):
     """The interface between the tracker and whatever measures features.
 
     Subclasses implement :meth:`extract`; :meth:`refresh` (updating the state at the solved
-    pose) defaults to returning the state unchanged. :attr:`reextracts` says whether searching
+    pose) defaults to returning the state unchanged, :meth:`score` (the global image score of
+    candidate poses) to None. :attr:`reextracts` says whether searching
     again around the solved pose can find better features (:attr:`TrackConfig.reextract`).
     """
 
@@ -67,6 +68,12 @@ class AbstractFrontEnd(abc.ABC):
     def refresh(self, images: Sequence[np.ndarray | None], q: np.ndarray | None, state: Any) -> Any:
         """The front end's state updated at the solved pose ``q`` (after a frame not lost)."""
         return state
+
+    def score(self, images: Sequence[np.ndarray | None], qs: np.ndarray, state: Any) -> np.ndarray | None:
+        """The global image score in [0, 1] (1: the model's silhouette matches the image) of each
+        candidate pose ``qs`` (k, n_q) of this frame, or None when the front end has no image
+        score (the default): the tracker then judges poses by their residuals alone."""
+        return None
 
 
 class ImageFrontEnd(AbstractFrontEnd):
