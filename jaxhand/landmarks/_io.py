@@ -229,7 +229,7 @@ def _load_plain_json(data: dict, path: Path) -> LandmarkSequence:
 
 def _load_mediapipe(data: dict, path: Path) -> LandmarkSequence:
     names = data.get("joint_names")
-    if names is not None and list(names) != list(POINT_NAMES):
+    if names is not None and (not isinstance(names, list) or names != list(POINT_NAMES)):
         raise LandmarkFileError(f"{path}: joint_names differ from the 21-point convention: {names!r}")
     frames_in = data.get("frames")
     if not isinstance(frames_in, list):
