@@ -152,17 +152,17 @@ def _refine(W: np.ndarray, yhat: np.ndarray, curve_ok: np.ndarray, S: int, subsa
     """
     L, M, K = W.shape
     x = np.arange(M, dtype=float)
+    flat, base = np.ascontiguousarray(W).reshape(-1), row_starts(W.shape)  # take_last's gathers, rows found once
     idx = yhat + S
     near = idx[..., None] + np.arange(-2, 3)  # the five entries around the rounded line
     inside = (near >= 0) & (near < K)
-    vals = np.where(inside, take_last(W, clip_index(near, 0, K - 1)), np.inf)
+    vals = np.where(inside, flat[base[..., None] + clip_index(near, 0, K - 1)], np.inf)
     j = np.argmin(vals, -1)
     k = clip_index(idx + j - 2, 0, K - 1)
-    wmin = take_last(W, k)
+    wmin = flat[base + k]
     y = (k - S).astype(float)
     if subsample:
-        km, kp = clip_index(k - 1, 0, K - 1), clip_index(k + 1, 0, K - 1)
-        wm, wp = take_last(W, km), take_last(W, kp)
+        wm, wp = flat[base + clip_index(k - 1, 0, K - 1)], flat[base + clip_index(k + 1, 0, K - 1)]
         inner = (k > 0) & (k < K - 1) & np.isfinite(wm) & np.isfinite(wp) & np.isfinite(wmin)
         y = y + np.where(inner, parabola_vertex(np.where(inner, wm, 0.0), np.where(inner, wmin, 0.0),
                                                 np.where(inner, wp, 0.0)), 0.0)
