@@ -32,8 +32,9 @@ with one ``cv2.remap`` per profile (a Python loop) instead of one call for the f
 Front end vs reference: the same clean hand21 frames through :func:`extract_features` and through
 the frozen copy of the front end before its split and speed-up (``tests/reference_image``), calls
 interleaved, for the wssd, gaussian and imwplls searches: median wall and CPU ms per frame, the
-ratio reference / new, and whether every feature came out the same (lines, tips and masks bit for bit,
-weights to 1e-12 relative).
+ratio reference / new, the median CPU ms of each stage (both front ends' stage clocks read
+``time.process_time`` during the comparison), and whether every feature came out the same (lines,
+tips and masks bit for bit, weights to 1e-12 relative).
 
 Run ``python benchmarks/features.py`` (writes ``benchmarks/results/features.json``),
 ``python benchmarks/features.py --quick`` for a smoke run (no JSON unless ``--out`` is given), or
@@ -72,6 +73,7 @@ jh.enable_x64()
 from jaxhand.image import SEARCH_NAMES, ImageConfig, capture_templates, extract_features  # noqa: E402
 from jaxhand.image.internal import INTERPOLATION_FLAGS, as_grey, sample_profiles  # noqa: E402
 from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402
+from jaxhand.track import AbstractFrontEnd, FrontEndResult, ImageFrontEnd, TrackConfig, Tracker  # noqa: E402
 
 DEFAULT_OUT = RESULTS / "features.json"
 VS_REFERENCE_OUT = RESULTS / "features_vs_reference.json"
@@ -237,9 +239,20 @@ def _same_features(a, b) -> bool:
                for x, y in zip(a, b, strict=True) for n in names)
 
 
+class _CpuClockTime:
+    """Stands in for the ``time`` module of both front ends' stage clocks during the comparison, so
+    their per-stage figures are CPU time (``process_time``) like the totals, not wall time."""
+
+    perf_counter = staticmethod(time.process_time)
+
+
 def versus_reference(quick: bool) -> list[dict]:
-    """hand21 ms per frame of the front end and of its frozen reference copy, calls interleaved."""
+    """hand21 ms per frame of the front end and of its frozen reference copy, calls interleaved:
+    wall and CPU totals, and CPU per stage (each front end's ``timings_s``)."""
     import reference_image
+    import reference_image._extract as reference_extract
+
+    import jaxhand.image._diagnostics as diagnostics
 
     seq = make_preset("full_hand_spread_flex", size=(320, 240))
     m, cam = seq.model, seq.cameras[0]
@@ -250,43 +263,157 @@ def versus_reference(quick: bool) -> list[dict]:
     fronts = {"new": (extract_features, capture_templates, ImageConfig),
               "reference": (reference_image.extract_features, reference_image.capture_templates,
                             reference_image.ImageConfig)}
-    rows = []
-    for method in REFERENCE_METHODS:
-        calls, same = {}, True
-        for name, (extract, capture, make_config) in fronts.items():
-            config = make_config(method=method)
-            state = capture(images[0], m, cam, seq.q[idx[0]], config)
-            calls[name] = [partial(extract, images[j], m, cam, seq.q[k], config, state) for j, k in enumerate(idx)]
-            calls[name][0]()  # compile the kinematics and warm the caches
-        wall = {name: [] for name in fronts}
-        cpu = {name: [] for name in fronts}
-        for _ in range(repeats):
-            for j in range(len(idx)):
-                outs = {}
-                for name in fronts:  # new and reference alternate, so load changes hit both alike
-                    c0, (t, out) = time.process_time(), time_call(calls[name][j])
-                    cpu[name].append(time.process_time() - c0)
-                    wall[name].append(t)
-                    outs[name] = out[0]
-                same &= _same_features(outs["new"], outs["reference"])
-        row = {"method": method, "frames": int(len(idx)), "repeats": repeats, "identical_features": bool(same)}
-        for name in fronts:
-            row[f"{name}_median_ms"] = 1e3 * statistics.median(wall[name])
-            row[f"{name}_cpu_median_ms"] = 1e3 * statistics.median(cpu[name])
-        row["reference_over_new"] = row["reference_median_ms"] / row["new_median_ms"]
-        row["reference_over_new_cpu"] = row["reference_cpu_median_ms"] / row["new_cpu_median_ms"]
-        rows.append(row)
+    clocks = (diagnostics, reference_extract)
+    saved = [mod.time for mod in clocks]
+    for mod in clocks:
+        mod.time = _CpuClockTime
+    try:
+        rows = [_versus_reference_method(method, fronts, m, cam, seq.q[idx], images, repeats)
+                for method in REFERENCE_METHODS]
+    finally:
+        for mod, t in zip(clocks, saved):
+            mod.time = t
     return rows
+
+
+def _versus_reference_method(method, fronts, m, cam, qs, images, repeats) -> dict:
+    calls, same = {}, True
+    for name, (extract, capture, make_config) in fronts.items():
+        config = make_config(method=method)
+        state = capture(images[0], m, cam, qs[0], config)
+        calls[name] = [partial(extract, images[j], m, cam, qs[j], config, state) for j in range(len(qs))]
+        calls[name][0]()  # compile the kinematics and warm the caches
+    wall = {name: [] for name in fronts}
+    cpu = {name: [] for name in fronts}
+    stages = {name: {} for name in fronts}
+    for _ in range(repeats):
+        for j in range(len(qs)):
+            outs = {}
+            for name in fronts:  # new and reference alternate, so load changes hit both alike
+                c0, (t, out) = time.process_time(), time_call(calls[name][j])
+                cpu[name].append(time.process_time() - c0)
+                wall[name].append(t)
+                outs[name] = out[0]
+                for stage, sec in out[1].timings_s.items():
+                    stages[name].setdefault(stage, []).append(sec)
+            same &= _same_features(outs["new"], outs["reference"])
+    row = {"method": method, "frames": len(qs), "repeats": repeats, "identical_features": bool(same),
+           "load_average_1min": os.getloadavg()[0]}
+    for name in fronts:
+        row[f"{name}_median_ms"] = 1e3 * statistics.median(wall[name])
+        row[f"{name}_cpu_median_ms"] = 1e3 * statistics.median(cpu[name])
+        row[f"{name}_cpu_stages_median_ms"] = {k: 1e3 * statistics.median(v) for k, v in stages[name].items()}
+    row["reference_over_new"] = row["reference_median_ms"] / row["new_median_ms"]
+    row["reference_over_new_cpu"] = row["reference_cpu_median_ms"] / row["new_cpu_median_ms"]
+    return row
+
+
+class _ReferenceFrontEnd(AbstractFrontEnd):
+    """The frozen reference front end behind the tracker's interface (no templates or widths: the
+    whole-frame comparison runs imwplls, as benchmarks/tracking.py does for hand21)."""
+
+    def __init__(self, model, cameras, config):
+        import reference_image
+
+        self.model, self.cameras, self.extract_features = model, cameras, reference_image.extract_features
+        self.config = reference_image.ImageConfig(method=config.method)
+
+    def extract(self, images, q_start, state, frame: int) -> FrontEndResult:
+        features, diag = self.extract_features(images, self.model, self.cameras, np.asarray(q_start), self.config)
+        return FrontEndResult(tuple(features), None)
+
+
+class _CpuTimed(AbstractFrontEnd):
+    """A front end with the CPU time of its last :meth:`extract` recorded (the tracker's own stage
+    timers read wall time)."""
+
+    def __init__(self, inner: AbstractFrontEnd):
+        self.inner, self.cpu_s = inner, 0.0
+
+    def extract(self, images, q_start, state, frame: int) -> FrontEndResult:
+        c0 = time.process_time()
+        out = self.inner.extract(images, q_start, state, frame)
+        self.cpu_s = time.process_time() - c0
+        return out
+
+    def refresh(self, images, q, state):
+        return self.inner.refresh(images, q, state)
+
+
+FRAME_METHOD, FRAME_FRAMES = "imwplls", 100   # benchmarks/tracking.py's hand21 experiment (bounded, 20 steps)
+
+
+def whole_frame(quick: bool) -> dict:
+    """CPU ms per ``Tracker.step`` on hand21 (front end + compiled solve + host), the front end and
+    its reference copy in two trackers stepped alternately on the same frames, and how far apart
+    the tracked poses come out (the line weights differ by rounding, so the solves may too)."""
+    seq = make_preset("full_hand_spread_flex", frames=20 if quick else FRAME_FRAMES, size=(320, 240))
+    images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras] for q in seq.q]
+    config = TrackConfig().merged({"solver": "bounded", "fit": {"max_steps": 20}, "filter": {"theta": 0.85},
+                                   "reextract": 0, "image": {"method": FRAME_METHOD}})
+    dt = float(seq.times_s[1] - seq.times_s[0])
+    fronts = {"new": _CpuTimed(ImageFrontEnd(seq.model, seq.cameras, config.image)),
+              "reference": _CpuTimed(_ReferenceFrontEnd(seq.model, seq.cameras, config.image))}
+    trackers = {k: Tracker(seq.model, seq.cameras, fe, config, dt_s=dt) for k, fe in fronts.items()}
+    states = {k: t.init(seq.q[0]) for k, t in trackers.items()}
+    cpu = {k: [] for k in fronts}
+    split = {k: {"features": [], "solve": []} for k in fronts}   # "solve": the rest of the step
+    diff, iterations, tracked = 0.0, [], {k: [] for k in fronts}
+    for k, imgs in enumerate(images):
+        q = {}
+        for name, tracker in trackers.items():
+            c0 = time.process_time()
+            states[name], rep = tracker.step(states[name], imgs, k, float(seq.times_s[k]))
+            if k:  # frame 0 compiles
+                cpu[name].append(time.process_time() - c0)
+                split[name]["features"].append(fronts[name].cpu_s)
+                split[name]["solve"].append(cpu[name][-1] - fronts[name].cpu_s)
+            q[name] = rep.q_filtered
+            tracked[name].append(rep.q_filtered)
+        diff = max(diff, float(np.max(np.abs(q["new"] - q["reference"]))))
+        iterations.append(rep.iterations)
+    out = {"method": FRAME_METHOD, "frames": len(images), "tracked_q_max_difference": diff,
+           "solver_iterations_median": float(np.median(iterations[1:])), "solver_iterations_max": int(max(iterations)),
+           "max_steps": 20, "load_average_1min": os.getloadavg()[0]}
+    for name in fronts:
+        out[f"{name}_cpu_median_ms"] = 1e3 * statistics.median(cpu[name])
+        out[f"{name}_frames_per_s_cpu"] = 1.0 / statistics.median(cpu[name])
+        for stage, v in split[name].items():
+            out[f"{name}_{stage}_median_ms"] = 1e3 * statistics.median(v)
+        err = np.abs(np.stack(tracked[name]) - np.asarray(seq.q))[:, np.asarray(seq.model.is_angle)]
+        out[f"{name}_joint_error_mean_deg"] = float(np.degrees(err.mean()))
+    return out
+
+
+def print_whole_frame(r: dict) -> None:
+    print(f"\nwhole hand21 frame (Tracker.step, {r['method']}, bounded 20 steps; median CPU ms over {r['frames'] - 1} "
+          f"frames; load {r['load_average_1min']:.1f}); solver iterations median {r['solver_iterations_median']:.0f}, "
+          f"max {r['solver_iterations_max']}")
+    for name in ("new", "reference"):
+        print(f"  {name:10s} frame {r[f'{name}_cpu_median_ms']:6.2f} ms "
+              f"({r[f'{name}_frames_per_s_cpu']:5.0f} frames/s): features {r[f'{name}_features_median_ms']:.2f}, "
+              f"solve and host {r[f'{name}_solve_median_ms']:.2f}; mean joint error "
+              f"{r[f'{name}_joint_error_mean_deg']:.3f} deg")
+    print(f"  largest difference of the tracked poses (any entry of q, rad or mm): {r['tracked_q_max_difference']:.2e}")
 
 
 def print_versus_reference(rows: list[dict]) -> None:
     print("\nfront end vs its reference copy, hand21 320x240, one camera (median ms per frame; wall and CPU)")
     print(f"{'method':10s} {'new':>8s} {'ref':>8s} {'ref/new':>8s} {'new cpu':>8s} {'ref cpu':>8s} {'ref/new':>8s} "
-          f"{'same':>5s}")
+          f"{'same':>5s} {'load':>5s}")
     for r in rows:
         print(f"{r['method']:10s} {r['new_median_ms']:8.2f} {r['reference_median_ms']:8.2f} "
               f"{r['reference_over_new']:8.2f} {r['new_cpu_median_ms']:8.2f} {r['reference_cpu_median_ms']:8.2f} "
-              f"{r['reference_over_new_cpu']:8.2f} {'yes' if r['identical_features'] else 'NO':>5s}")
+              f"{r['reference_over_new_cpu']:8.2f} {'yes' if r['identical_features'] else 'NO':>5s} "
+              f"{r['load_average_1min']:5.1f}")
+    print("\nCPU ms per frame by stage (median; new / reference / reference over new)")
+    stages = list(rows[0]["new_cpu_stages_median_ms"])
+    print(f"{'method':10s} " + " ".join(f"{s:>22s}" for s in stages))
+    for r in rows:
+        new, ref = r["new_cpu_stages_median_ms"], r["reference_cpu_stages_median_ms"]
+        print(f"{r['method']:10s} " + " ".join(
+            f"{new.get(s, 0.0):6.2f} /{ref.get(s, 0.0):6.2f} /{ref.get(s, 0.0) / max(new.get(s, 0.0), 1e-9):5.2f}"
+            for s in stages))
 
 
 def _reference_metrics(rows: list[dict]) -> dict:
@@ -296,6 +423,8 @@ def _reference_metrics(rows: list[dict]) -> dict:
         out[f"{key}.front_end_median_ms"] = r["new_median_ms"]
         out[f"{key}.reference_median_ms"] = r["reference_median_ms"]
         out[f"{key}.reference_over_new"] = r["reference_over_new"]
+        out[f"{key}.front_end_cpu_median_ms"] = r["new_cpu_median_ms"]
+        out[f"{key}.reference_over_new_cpu"] = r["reference_over_new_cpu"]
         out[f"{key}.identical_to_reference"] = r["identical_features"]
     return out
 
@@ -366,8 +495,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.vs_reference:
         vs_ref = versus_reference(args.quick)
         print_versus_reference(vs_ref)
+        frame = whole_frame(args.quick)
+        print_whole_frame(frame)
         data = {"benchmark": "features_vs_reference", "environment": env, "quick": args.quick,
-                "front_end_vs_reference": vs_ref, "metrics": _reference_metrics(vs_ref)}
+                "front_end_vs_reference": vs_ref, "whole_frame": frame,
+                "metrics": {**_reference_metrics(vs_ref), "features.hand21.whole_frame.frames_per_s_cpu":
+                            frame["new_frames_per_s_cpu"]}}
         out = args.out if args.out is not None else (None if args.quick else VS_REFERENCE_OUT)
     else:
         print(HEADER)

@@ -1,7 +1,10 @@
 """The image front end's fast paths give the same answers as the straightforward shapely / NumPy
 versions they replace: the point-in-outline test against shapely unions, the WSSD valley descent
-against a plain PLLS loop, and the lazily converted window outlines against the eager list."""
+against a plain PLLS loop, the lazily converted window outlines against the eager list, and the
+front end's compiled kinematics against :func:`jaxhand.kinematics.project_pose`."""
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 import pytest
 import shapely
@@ -16,10 +19,12 @@ from jaxhand.image.internal import (
     observe,
     off_other_links,
     plls,
+    predicted_geometry,
     same_chain,
     window_masks,
 )
 from jaxhand.image.internal import wssd_descend as _descend
+from jaxhand.kinematics import project_pose
 from jaxhand.render import RenderConfig, make_preset, render_frame
 from jaxhand.track import ImageFrontEnd
 
@@ -207,3 +212,23 @@ def test_window_mask_equals_the_window_polygons(request, data_name, offset_deg):
         tl = np.array([len(obs.start) - 1, 0])
         np.testing.assert_array_equal(vis.rows(tl).window_mask(pts[tl]), window_masks(vis.windows[tl], pts[tl]))
     assert n_in > 100 and n_out > 100
+
+
+@pytest.mark.parametrize("name", ["full_hand_spread_flex", "two_finger_occlusion", "two_camera_hand"])
+def test_predicted_geometry_is_project_pose(name):
+    # Bit for bit at perturbed poses, for every camera, and for a model with other radii (a new
+    # model object, as width estimation makes each frame), whose radii must show.
+    seq = make_preset(name, frames=12)
+    rng = np.random.default_rng(3)
+    thicker = eqx.tree_at(lambda m: m.link_radius_mm, seq.model, seq.model.link_radius_mm * 1.3)
+    for model in (seq.model, thicker):
+        for cam in seq.cameras:
+            for k in range(0, 12, 4):
+                q = np.asarray(seq.q[k]) + np.where(model.is_angle, 0.05 * rng.standard_normal(model.n_q), 0.0)
+                v, g = project_pose(model, cam, jnp.asarray(q)), predicted_geometry(model, cam, q)
+                for want, got in ((v.link_start_px, g.start), (v.link_end_px, g.end), (v.link_depth, g.depth),
+                                  (v.link_radius_px, g.radius), (v.tips_px, g.tips)):
+                    assert np.array_equal(np.asarray(want), got)
+    base = predicted_geometry(seq.model, seq.cameras[0], np.asarray(seq.q[0])).radius
+    np.testing.assert_allclose(predicted_geometry(thicker, seq.cameras[0], np.asarray(seq.q[0])).radius, 1.3 * base,
+                               rtol=1e-12)

@@ -13,10 +13,11 @@ import shapely
 
 from .._errors import InputError
 from ..camera import Perspective, as_rig
-from ..kinematics import project_pose, validate_q
+from ..kinematics import validate_q
 from ..model import Model
 from ._config import ImageConfig
 from ._diagnostics import Clock
+from ._geometry import predicted_geometry
 from ._sampling import as_grey, sample_profiles
 from ._state import ImageState
 from ._trackers import LinkSamplers, place_link_samplers
@@ -92,11 +93,8 @@ def end_radii(camera, depth: np.ndarray, radius: np.ndarray, ok: np.ndarray) -> 
 def observe(ctx: CameraContext, q: np.ndarray) -> Observation:
     """Steps 1-3 of the pipeline at pose ``q``: kinematics, samplers, visibility, profiles."""
     config, clock = ctx.config, ctx.clock
-    # q goes in as NumPy: the jitted call converts it with its arguments (jnp.asarray first costs
-    # a device operation of its own)
-    view = project_pose(ctx.model, ctx.camera, np.asarray(q, float))
-    start, end = np.asarray(view.link_start_px, float), np.asarray(view.link_end_px, float)
-    depth, radius = np.asarray(view.link_depth, float), np.asarray(view.link_radius_px, float)
+    geo = predicted_geometry(ctx.model, ctx.camera, q)
+    start, end, depth, radius = geo.start, geo.end, geo.depth, geo.radius
     clock.lap("kinematics")
     samplers = place_link_samplers(start, end, radius, config.samplers)
     clock.lap("samplers")
@@ -108,7 +106,7 @@ def observe(ctx: CameraContext, q: np.ndarray) -> Observation:
     clock.lap("sampling")
     window = vis.window_mask(samplers.points) & usable
     clock.lap("visibility")
-    return Observation(start=start, end=end, tips=np.asarray(view.tips_px, float), samplers=samplers,
+    return Observation(start=start, end=end, tips=geo.tips, samplers=samplers,
                        visibility=vis, values=values, usable=usable, window=window)
 
 

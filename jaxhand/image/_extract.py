@@ -38,6 +38,15 @@ from .searches import TEMPLATE_SEARCHES, search_named
 __all__ = ["extract_features"]
 
 
+@jax.jit
+def _to_features(lines, line_valid, line_weight, tips, tip_valid) -> Features:
+    """One camera's feature arrays as device :class:`Features` in one compiled call: a jitted call
+    converts its NumPy arguments on its fast path and builds the Module by unflattening, far cheaper
+    than ``jax.device_put`` and ``Features.__init__`` (the same values; a tip's weight is its validity)."""
+    return Features(lines=lines, line_valid=line_valid, line_weight=line_weight, tips=tips, tip_valid=tip_valid,
+                    tip_weight=tip_valid.astype(float))
+
+
 @no_type_check   # validates its arguments itself (InputError naming the argument), which a checker would preempt
 def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig | None = None,
                      state: ImageState | None = None) -> tuple[tuple[Features, ...], Diagnostics]:
@@ -87,10 +96,7 @@ def extract_features(images, model: Model, cameras, q_pred, config: ImageConfig 
         if config.reacquire_deg:
             view, reacquired = reacquire(ctx, q, obs, view)
         fit, tips = view.fit, view.tips
-        # one transfer for the six arrays (what jnp.asarray does to each, in one call)
-        arrays = jax.device_put((fit.lines, fit.valid, fit.weight, tips.tips, tips.valid, tips.valid.astype(float)))
-        features.append(Features(**dict(zip(("lines", "line_valid", "line_weight", "tips", "tip_valid", "tip_weight"),
-                                            arrays))))
+        features.append(_to_features(fit.lines, fit.valid, fit.weight, tips.tips, tips.valid))
         diags.append(CameraDiagnostics(samplers=obs.samplers, visibility=obs.visibility, profiles=view.profiles,
                                        edges=view.edges, edge_px=view.edge_px, boundary_lines=fit.boundary,
                                        boundary_valid=fit.bvalid, inliers=fit.inliers, axial_lines=fit.lines,

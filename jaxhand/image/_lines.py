@@ -6,6 +6,8 @@ Everything is vectorised over leading axes (all links, both boundaries, at once)
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ._xy import dot_xy, norm_xy
@@ -36,7 +38,7 @@ def ransac_pca(points: np.ndarray, valid: np.ndarray, tau_px: float, min_inliers
     """
     pts = np.where(valid[..., None], np.asarray(points, float), 0.0)
     m = pts.shape[-2]
-    i, j = np.triu_indices(m, k=1)  # every pair, in a fixed order
+    i, j = _pairs(m)  # every pair, in a fixed order
     d = pts[..., j, :] - pts[..., i, :]  # (..., P, 2)
     norm = norm_xy(d)
     pair_ok = valid[..., i] & valid[..., j] & (norm > 1e-9)
@@ -65,6 +67,15 @@ def ransac_pca(points: np.ndarray, valid: np.ndarray, tau_px: float, min_inliers
     _, vecs = np.linalg.eigh(cov)
     v = vecs[..., :, 1]  # eigh sorts eigenvalues ascending: the last column is the main direction
     return np.where(ok[..., None], mu, 0.0), np.where(ok[..., None], v, [1.0, 0.0]), np.asarray(ok), inliers
+
+
+@functools.lru_cache(maxsize=8)
+def _pairs(m: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.triu_indices(m, k=1)``, kept per group size (read-only)."""
+    i, j = np.triu_indices(m, k=1)
+    i.setflags(write=False)
+    j.setflags(write=False)
+    return i, j
 
 
 def axial_line(p1: np.ndarray, v1: np.ndarray, p2: np.ndarray, v2: np.ndarray, det_eps: float = 1e-9

@@ -8,8 +8,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..kinematics import project_pose
 from ._context import CameraContext, Observation, against_background, end_radii, observe
+from ._geometry import predicted_geometry
 from ._sampling import sample_profiles
 from ._trackers import place_link_samplers
 from ._view import View, find_tips, search_view
@@ -81,10 +81,9 @@ def search_turns(ctx: CameraContext, links: np.ndarray, qs: Sequence[np.ndarray]
     model, config, clock = ctx.model, ctx.config, ctx.clock
     n, L = len(qs), model.n_links
     links = np.asarray(links, int)
-    views = [project_pose(model, ctx.camera, np.asarray(qc, float)) for qc in qs]
-    geometry = [(np.asarray(v.link_start_px, float), np.asarray(v.link_end_px, float),
-                 np.asarray(v.link_depth, float), np.asarray(v.link_radius_px, float)) for v in views]
-    tips = [np.asarray(v.tips_px, float) for v in views]
+    views = [predicted_geometry(model, ctx.camera, qc) for qc in qs]
+    geometry = [(v.start, v.end, v.depth, v.radius) for v in views]
+    tips = [v.tips for v in views]
     clock.lap("kinematics")
     # One row per distinct link pose: the first turn's links, then each later turn's links that
     # moved (bit for bit), and each turn's searched link in a row of its own; rows[i, k] holds

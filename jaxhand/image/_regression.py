@@ -26,16 +26,25 @@ def solve_2x2(R: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     scale = (np.abs(R[..., 0, 0]) + np.abs(R[..., 1, 1])) ** 2
     ok = np.abs(det) > SINGULAR * np.maximum(scale, 1e-300)
     safe = np.where(ok, det, 1.0)  # Guard: a singular system gets a dummy denominator, then zeros.
-    c0 = (R[..., 1, 1] * r[..., 0] - R[..., 0, 1] * r[..., 1]) / safe
-    c1 = (R[..., 0, 0] * r[..., 1] - R[..., 1, 0] * r[..., 0]) / safe
-    return np.where(ok[..., None], np.stack([c0, c1], -1), 0.0), np.asarray(ok)
+    # filled in place: np.stack's overhead is most of a small system's cost
+    c = np.empty(np.broadcast_shapes(R.shape[:-2], r.shape[:-1]) + (2,), np.result_type(R, r, 1.0))
+    np.divide(R[..., 1, 1] * r[..., 0] - R[..., 0, 1] * r[..., 1], safe, out=c[..., 0])
+    np.divide(R[..., 0, 0] * r[..., 1] - R[..., 1, 0] * r[..., 0], safe, out=c[..., 1])
+    c[~ok] = 0.0
+    return c, np.asarray(ok)
 
 
 def normal_equations(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """R = sum_i a_i [[1, x_i], [x_i, x_i^2]] and r = sum_i b_i [1, x_i] over the last axis."""
-    R = np.stack([np.stack([a.sum(-1), (a * x).sum(-1)], -1),
-                  np.stack([(a * x).sum(-1), (a * x * x).sum(-1)], -1)], -2)
-    r = np.stack([b.sum(-1), (b * x).sum(-1)], -1)
+    ax = a * x
+    R = np.empty(ax.shape[:-1] + (2, 2))   # filled in place (no np.stack)
+    R[..., 0, 0] = a.sum(-1)
+    R[..., 0, 1] = R[..., 1, 0] = ax.sum(-1)
+    R[..., 1, 1] = (ax * x).sum(-1)
+    bx = b * x
+    r = np.empty(bx.shape[:-1] + (2,))
+    r[..., 0] = b.sum(-1)
+    r[..., 1] = bx.sum(-1)
     return R, r
 
 
@@ -93,14 +102,15 @@ def imwplls(x: np.ndarray, ys: np.ndarray, weights: np.ndarray, mask: np.ndarray
     c, ok = mwplls(x, ys, weights, mask)
     iters = np.zeros(ok.shape, int)
     active = ok.copy()
+    xb = np.broadcast_to(x, mask.shape)
     for _ in range(max_iter):
         if not active.any():
             break
-        line = c[..., 0, None] + c[..., 1, None] * np.broadcast_to(x, mask.shape)
+        line = c[..., 0, None] + c[..., 1, None] * xb
         near = np.abs(ys - line[..., None]) <= halfwidth
         c_new, ok_new = mwplls(x, ys, np.where(near, weights, 0.0), mask)
         step = active & ok_new
-        moved = np.abs(c_new - c).max(-1) > 1e-9
+        moved = np.maximum(np.abs(c_new[..., 0] - c[..., 0]), np.abs(c_new[..., 1] - c[..., 1])) > 1e-9
         c = np.where(step[..., None], c_new, c)
         iters = iters + step
         active = step & moved

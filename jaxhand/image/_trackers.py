@@ -16,6 +16,7 @@ centre, where the tip's boundary should be.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -75,13 +76,21 @@ def place_link_samplers(start_px: np.ndarray, end_px: np.ndarray, radius_px: np.
     # sample positions are NaN below, which the sampler reports as unusable.
     u = np.where(ok[:, None], d / np.where(ok, length, 1.0)[:, None], np.array([1.0, 0.0]))
     n = np.stack([u[:, 1], -u[:, 0]], -1)
-    f = np.linspace(config.along[0], config.along[1], config.per_link)
+    f = _along(tuple(config.along), config.per_link)
     centres = np.where(ok[:, None, None], start[:, None] + f[None, :, None] * d[:, None], np.nan)
     spacing = np.where(ok, 2 * config.scope * np.where(ok, radius, 0.0) / (config.points - 1), 0.0)
     j = np.arange(config.points) - config.centre
     pts = centres[:, :, None, :] + (j[None, None, :, None] * spacing[:, None, None, None]) * n[:, None, None, :]
     return LinkSamplers(direction=u, normal=n, radius_px=np.where(ok, radius, 0.0), length_px=nan_to_num(length),
                         ok=ok, centres=centres, spacing_px=spacing, points=pts)
+
+
+@functools.lru_cache(maxsize=8)
+def _along(along: tuple, per_link: int) -> np.ndarray:
+    """Where the samplers sit along the link, as fractions of its length (read-only)."""
+    f = np.linspace(along[0], along[1], per_link)
+    f.setflags(write=False)
+    return f
 
 
 def refine_tip(tip_px: np.ndarray, p_ax: np.ndarray, v_ax: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -6,6 +6,7 @@ pipeline passes between its steps. Users call :mod:`jaxhand.image`."""
 from ._config import INTERPOLATIONS, POLARITIES
 from ._context import CameraContext, Observation, against_background, as_images, observe, off_other_links
 from ._diagnostics import CameraDiagnostics, Clock
+from ._geometry import Geometry, predicted_geometry
 from ._lines import axial_line, line_params, line_point_direction, offset_towards, ransac_pca
 from ._reacquire import reacquire, reacquire_full, search_turns, turns_to_try
 from ._regression import imwplls, mwplls, plls
@@ -38,7 +39,8 @@ from .searches._wssd import wssd_surface
 __all__ = [
     "INTERPOLATIONS", "POLARITIES", "INTERPOLATION_FLAGS", "SEARCHES", "TEMPLATE_SEARCHES", "search_named",
     "Profiles", "Edges", "as_grey", "as_images", "sample_profiles",
-    "CameraContext", "Observation", "observe", "off_other_links", "against_background", "CameraDiagnostics", "Clock",
+    "CameraContext", "Observation", "observe", "Geometry", "predicted_geometry", "off_other_links",
+    "against_background", "CameraDiagnostics", "Clock",
     "LinkSamplers", "TipSamplers", "place_link_samplers", "place_tip_samplers", "refine_tip",
     "Visibility", "compute_visibility", "pill_outlines", "same_chain", "window_masks", "convex_edges",
     "inside_polygons", "ransac_pca", "axial_line", "line_params", "line_point_direction", "offset_towards",

@@ -10,6 +10,7 @@ Boundary 0 lies towards smaller sample indices, boundary 1 towards larger ones.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -128,13 +129,20 @@ def simple_derivative(values: np.ndarray, usable: np.ndarray) -> tuple[np.ndarra
     return np.where(ok, d, 0.0), ok, np.arange(values.shape[-1] - 1) + 0.5
 
 
+@functools.lru_cache(maxsize=32)
 def derivative_kernel(sigma: float) -> np.ndarray:
     """Sampled Gaussian derivative (thesis §11.1.2), scaled so a unit ramp gives 1, as a
-    correlation kernel (``out(k) = sum_i c_i I(k + i)``) of length ``2 ceil(3 sigma) + 1``."""
+    correlation kernel (``out(k) = sum_i c_i I(k + i)``) of length ``2 ceil(3 sigma) + 1``
+    (cached and read-only: it depends on the settings only)."""
     h = max(1, int(np.ceil(3.0 * sigma)))
     i = np.arange(-h, h + 1, dtype=float)
     c = i * np.exp(-0.5 * (i / sigma) ** 2)  # -dN/dk up to a constant: correlation form of the derivative
-    return c / np.sum(c * i)
+    return _read_only(c / np.sum(c * i))
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
 
 
 def gaussian_derivative(values: np.ndarray, usable: np.ndarray, sigma: float
@@ -198,16 +206,17 @@ def masked_argmax(score: np.ndarray, allowed: np.ndarray, subsample: bool) -> tu
     return k, val, off
 
 
+@functools.lru_cache(maxsize=32)
 def width_template(points: int, centre: float, width: float, sigma: float, sign: float) -> np.ndarray:
     """Synthetic derivative of an ideal phalanx profile (thesis §11.2.2): a positive and a negative
     peak (narrow Gaussian blobs of ``sigma`` samples, each summing to one, which puts a peak between
-    samples) at ``centre ∓ width / 2``; the
-    first peak is positive for ``sign = +1`` (bright hand)."""
+    samples) at ``centre ∓ width / 2``; the first peak is positive for ``sign = +1`` (bright hand).
+    Cached and read-only: it depends on the settings only."""
     k = np.arange(points, dtype=float)
     s = max(sigma, 1e-3)
     left = np.exp(-0.5 * ((k - (centre - width / 2)) / s) ** 2)
     right = np.exp(-0.5 * ((k - (centre + width / 2)) / s) ** 2)
-    return sign * (left / left.sum() - right / right.sum())
+    return _read_only(sign * (left / left.sum() - right / right.sum()))
 
 
 def correlate_shifts(d: np.ndarray, d_valid: np.ndarray, template: np.ndarray, max_shift: int

@@ -63,11 +63,17 @@ def wssd_surface(values: np.ndarray, usable: np.ndarray, templates: np.ndarray, 
         each entry, and the shifts.
     """
     S = int(max_shift)
-    img = sliding_window_view(pad_last(values, S), values.shape[-1], axis=-1)  # (..., 2S+1, n): I(j + s)
-    ok = sliding_window_view(pad_last(usable, S), values.shape[-1], axis=-1) & window[..., None, :]
-    diff = np.subtract(img, templates[..., None, :])
-    np.copyto(diff, 0.0, where=~ok)  # in place: the surface is the largest array of a frame
-    counts = np.count_nonzero(ok, axis=-1)
+    n = values.shape[-1]
+    img = sliding_window_view(pad_last(values, S), n, axis=-1)  # (..., 2S+1, n): I(j + s)
+    # The terms that count as 0/1 factors: a masked difference times 0 is the 0 the sum skips and
+    # times 1 is itself, so W has the same bits as masking by assignment. The factor multiplies
+    # before the square, and the templates are zeroed outside their window, so no masked term is
+    # an inf or a NaN (values are finite). The counts are a correlation of two small 0/1 arrays.
+    ok = sliding_window_view(pad_last(usable, S), n, axis=-1) & window[..., None, :]
+    diff = np.subtract(img, np.where(window, templates, 0.0)[..., None, :])
+    np.multiply(diff, ok, out=diff)  # in place: the surface is the largest array of a frame
+    usable_f = sliding_window_view(pad_last(usable.astype(float), S), n, axis=-1)
+    counts = np.rint(np.matmul(usable_f, window.astype(float)[..., None])[..., 0]).astype(int)
     W = np.where(counts > 0, np.square(diff, out=diff).sum(-1) / np.maximum(counts, 1), np.inf)
     return W, counts, np.arange(-S, S + 1)
 
@@ -102,17 +108,18 @@ def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tupl
     flat, base = Wf.reshape(-1), row_starts(Wf.shape)
     # Each link's next line depends on its own displacements only, so a link whose line comes
     # back to an earlier one cycles from there on: its line after ``max_iter`` steps is known at
-    # once, and the link leaves the loop (the result is the same as iterating on).
-    history = [yhat]
+    # once, and the link leaves the loop (the result is the same as iterating on). Earlier lines
+    # are compared a whole row at a time, each row of displacements viewed as one opaque value.
+    history = np.zeros((max_iter + 1, L, M), yhat.dtype)
+    rows_seen = history.view(np.dtype((np.void, history.itemsize * M)))[..., 0]  # (steps, links)
     for n in range(max_iter):
         if not active.any():
             break
         k = yhat + S
         up = flat[base + np.minimum(k + 1, K - 1)]
         down = flat[base + np.maximum(k - 1, 0)]
-        g = up - down
-        y = yhat - np.sign(g)
-        b = w * np.where(curve_ok, y, 0.0)
+        y = yhat - np.sign(up - down)
+        b = np.where(curve_ok, y, 0.0)  # the PLLS weights are curve_ok as 0/1: w * b is b
         b0, b1 = b.sum(-1), (b * xb).sum(-1)
         c0 = np.where(ok, (r11 * b0 - r01 * b1) / safe, 0.0)
         c1 = np.where(ok, (r00 * b1 - r10 * b0) / safe, 0.0)
@@ -122,14 +129,14 @@ def _descend(W: np.ndarray, curve_ok: np.ndarray, S: int, max_iter: int) -> tupl
         yhat = np.where(step[:, None], new, yhat)
         fit_ok = fit_ok & np.where(active, ok, True)
         active = step & changed
-        seen = np.all(np.stack(history) == yhat, axis=-1) & active  # (steps so far, links)
-        history.append(yhat)
+        history[n + 1] = yhat
+        seen = (rows_seen[: n + 1] == rows_seen[n + 1]) & active  # (steps so far, links)
         if seen.any():
             yhat = yhat.copy()
             t = n + 1
             for link in np.nonzero(seen.any(0))[0]:
                 t0 = int(np.nonzero(seen[:, link])[0][0])
-                yhat[link] = history[t0 + (max_iter - t0) % (t - t0)][link]
+                yhat[link] = history[t0 + (max_iter - t0) % (t - t0), link]
             active = active & ~seen.any(0)
     return yhat, fit_ok
 
@@ -145,17 +152,17 @@ def _refine(W: np.ndarray, yhat: np.ndarray, curve_ok: np.ndarray, S: int, subsa
     """
     L, M, K = W.shape
     x = np.arange(M, dtype=float)
+    flat, base = np.ascontiguousarray(W).reshape(-1), row_starts(W.shape)  # take_last's gathers, rows found once
     idx = yhat + S
     near = idx[..., None] + np.arange(-2, 3)  # the five entries around the rounded line
     inside = (near >= 0) & (near < K)
-    vals = np.where(inside, take_last(W, clip_index(near, 0, K - 1)), np.inf)
+    vals = np.where(inside, flat[base[..., None] + clip_index(near, 0, K - 1)], np.inf)
     j = np.argmin(vals, -1)
     k = clip_index(idx + j - 2, 0, K - 1)
-    wmin = take_last(W, k)
+    wmin = flat[base + k]
     y = (k - S).astype(float)
     if subsample:
-        km, kp = clip_index(k - 1, 0, K - 1), clip_index(k + 1, 0, K - 1)
-        wm, wp = take_last(W, km), take_last(W, kp)
+        wm, wp = flat[base + clip_index(k - 1, 0, K - 1)], flat[base + clip_index(k + 1, 0, K - 1)]
         inner = (k > 0) & (k < K - 1) & np.isfinite(wm) & np.isfinite(wp) & np.isfinite(wmin)
         y = y + np.where(inner, parabola_vertex(np.where(inner, wm, 0.0), np.where(inner, wmin, 0.0),
                                                 np.where(inner, wp, 0.0)), 0.0)
