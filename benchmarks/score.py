@@ -229,27 +229,35 @@ def tracked_frames(data: Path, name: str, levels: tuple[float, float] | None, fr
     return {"sequence": name, "tip_error_px": err.tolist(), **{k: np.asarray(v).tolist() for k, v in rec.items()}}
 
 
-def fit_levels(records: list[dict], width: float = 0.18, max_good_flagged: float = 0.05) -> tuple[float, float]:
+def _relative(record: dict) -> np.ndarray:
+    """A run's recorded scores over its first one (:attr:`LossConfig.score_relative`); NaN (not
+    scored: lost by the residuals) as 1, which the residual flag decides anyway."""
+    s = np.asarray(record["score"], float)
+    return np.where(np.isfinite(s), s, 1.0) / s[0]
+
+
+def fit_levels(records: list[dict], width: float = 0.18) -> tuple[float, float]:
     """(score_lost, score_good) from tracked frames: the middle of the ramp (confidence 0.5) is
-    the highest score threshold that flags at most ``max_good_flagged`` of the frames within 3 px
-    (the flag is ``score < threshold``), the ramp ``width`` wide around it."""
-    score = np.concatenate([r["score"] for r in records])
+    the threshold on the relative score that maximises the share of frames > 8 px flagged less
+    the share of frames < 3 px flagged (Youden's J), with the ramp ``width`` wide around it."""
+    score = np.concatenate([_relative(r) for r in records])
     err = np.concatenate([r["tip_error_px"] for r in records])
-    good = np.sort(score[(err < 3.0) & np.isfinite(score)])
-    mid = float(good[int(np.floor(max_good_flagged * len(good)))]) if len(good) else 0.8
-    return mid - width / 2, mid + width / 2
+    bad, good = score[err > 8.0], score[err < 3.0]
+    ts = np.linspace(0.5, 1.0, 501)
+    j = [(bad < t).mean() - (good < t).mean() for t in ts]
+    mid = float(ts[int(np.argmax(j))])
+    return mid - width / 2, min(mid + width / 2, 1.0)
 
 
 def flag_shares(records: list[dict], levels: tuple[float, float] | None) -> dict:
     """:func:`loss_flag_quality` of tracked frames, with the image term at ``levels`` applied to the
-    recorded scores (None: as recorded)."""
+    recorded scores (relative to each run's first; None: the run's own flags)."""
     err = np.concatenate([r["tip_error_px"] for r in records])
     conf = np.concatenate([r["confidence"] for r in records])
     lost = np.concatenate([r["lost"] for r in records]).astype(bool)
     if levels is not None:
         resid = np.concatenate([r["residual_confidence"] for r in records])
-        score = np.concatenate([r["score"] for r in records])
-        c_img, l_img = frame_confidence(np.where(np.isfinite(score), score, 1.0), 0.0, 1.0,
+        c_img, l_img = frame_confidence(np.concatenate([_relative(r) for r in records]), 0.0, 1.0,
                                         ConfidenceConfig(score_lost=levels[0], score_good=levels[1]))
         conf, lost = np.where(lost, 0.0, np.minimum(resid, c_img)), lost | l_img
     return loss_flag_quality(err, conf, lost)
@@ -258,7 +266,8 @@ def flag_shares(records: list[dict], levels: tuple[float, float] | None) -> dict
 def held_out(data: Path, frames: int | None) -> dict:
     """Leave one sequence out: per dev sequence, levels fitted on the tracked frames of the other
     clean sequences (clutter is never fitted on), the flag shares of the held-out sequence's
-    recorded frames with those levels, and of a real run that uses them (loss and hold)."""
+    recorded frames with those levels, and of a real run that uses them (loss and hold); pooled
+    over the clean sequences as well."""
     observed = {name: tracked_frames(data, name, None, frames) for name in DEVSET}
     rows = []
     for name in DEVSET:
@@ -271,8 +280,25 @@ def held_out(data: Path, frames: int | None) -> dict:
         rows.append(row)
         print(f"  {name}: levels {levels[0]:.3f}-{levels[1]:.3f}, residual only {row['residual_only']}, "
               f"real run {row['real_run']}", flush=True)
+    clean = [r for r in rows if "clutter" not in r["sequence"]]
+    rows.append({"sequence": "pooled clean", "score_lost": float("nan"), "score_good": float("nan"),
+                 "residual_only": flag_shares([observed[r["sequence"]] for r in clean], None),
+                 "recorded": _pooled_recorded(clean, observed),
+                 "real_run": flag_shares([r["real_run_record"] for r in clean], None)})
     return {"observed": observed, "held_out": rows, "levels_all_clean": fit_levels(
         [observed[o] for o in DEVSET if "clutter" not in o])}
+
+
+def _pooled_recorded(rows: list[dict], observed: dict) -> dict:
+    """The recorded frames' flags, each sequence with its own held-out levels, pooled."""
+    parts = [flag_shares([observed[r["sequence"]]], (r["score_lost"], r["score_good"])) for r in rows]
+    out = {"bad_px": 8.0, "good_px": 3.0}
+    for cls in ("bad", "good"):
+        n = sum(p[f"frames_{cls}"] for p in parts)
+        out[f"frames_{cls}"] = n
+        out[f"flagged_{cls}"] = sum((p[f"flagged_{cls}"] or 0.0) * p[f"frames_{cls}"] for p in parts) / n if n else None
+    out["frames_flagged"] = sum(p["frames_flagged"] for p in parts)
+    return out
 
 
 def main(argv=None) -> int:
@@ -291,7 +317,7 @@ def main(argv=None) -> int:
         out = held_out(args.data, args.frames)
         cols = ["sequence", "mid", "residual >8px", "residual <3px", "recorded >8px", "recorded <3px",
                 "real >8px", "real <3px", "frames >8px", "frames <3px"]
-        table = [[r["sequence"], r["score_lost"] + 0.09, r["residual_only"]["flagged_bad"],
+        table = [[r["sequence"], 0.5 * (r["score_lost"] + r["score_good"]), r["residual_only"]["flagged_bad"],
                   r["residual_only"]["flagged_good"], r["recorded"]["flagged_bad"], r["recorded"]["flagged_good"],
                   r["real_run"]["flagged_bad"], r["real_run"]["flagged_good"], r["real_run"]["frames_bad"],
                   r["real_run"]["frames_good"]] for r in out["held_out"]]

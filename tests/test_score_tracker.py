@@ -20,6 +20,7 @@ from jaxhand.track import (
     TrackConfig,
     Tracker,
     confidence_of,
+    judge_frame,
     loss_flag_quality,
     track_sequence,
 )
@@ -165,3 +166,33 @@ def test_summary_reports_the_loss_flag_on_a_devset_run(opposition, tmp_path):
     assert flag == summary["loss_flag"]
     assert flag == {"bad_px": 8.0, "good_px": 3.0, "frames_bad": 0, "flagged_bad": None, "frames_good": 6,
                     "flagged_good": 0.0, "frames_flagged": 0}
+
+
+class _FixedScore(AbstractFrontEnd):
+    """Scores every pose with a given number (to test the rule alone)."""
+
+    def __init__(self, value):
+        self.value = value
+
+    def extract(self, images, q_start, state, frame):
+        raise NotImplementedError("not called by judge_frame")
+
+    def score(self, images, qs, state):
+        return np.full(len(qs), self.value)
+
+
+def test_judge_frame_ramp_reference_and_loss():
+    """Levels 0.7 / 0.9 on the score over the first scored frame's (0.8 here): a frame scoring
+    0.64 (ratio 0.8) gets image confidence 0.5, one scoring 0.5 (ratio 0.625) is lost; absolute
+    levels judge 0.64 lost; a residual-lost frame is not scored."""
+    loss = LossConfig(score_lost=0.7, score_good=0.9)
+    q = np.zeros(3)
+    conf, lost, score, ref = judge_frame(_FixedScore(0.8), [None], q, None, 0.95, False, loss)
+    assert (conf, lost, score, ref) == (0.95, False, 0.8, 0.8)
+    conf, lost, score, ref = judge_frame(_FixedScore(0.64), [None], q, None, 0.95, False, loss, 0.8)
+    assert conf == pytest.approx(0.5) and not lost and ref == 0.8
+    assert judge_frame(_FixedScore(0.5), [None], q, None, 0.95, False, loss, 0.8)[:2] == (0.0, True)
+    absolute = LossConfig(score_lost=0.7, score_good=0.9, score_relative=False)
+    assert judge_frame(_FixedScore(0.64), [None], q, None, 0.95, False, absolute, 0.8)[:2] == (0.0, True)
+    conf, lost, score, ref = judge_frame(_FixedScore(0.9), [None], q, None, 0.0, True, loss, 0.8)
+    assert (conf, lost, np.isnan(score), ref) == (0.0, True, True, 0.8)

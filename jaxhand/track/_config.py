@@ -111,6 +111,9 @@ class LossConfig:
         score_lost, score_good: host, in [0, 1]. The front end's image score (where it gives one:
             :attr:`jaxhand.image.ImageConfig.score`) of the estimate at which the frame is lost,
             and above which the image does not lower the confidence (:func:`~jaxhand.track.judge_frame`).
+        score_relative: host. Apply those levels to the score over the first scored frame's
+            (tracking starts from a given pose): the score a right pose reaches differs with the
+            view, the foreground model and what the model lacks (a palm, clutter).
     """
 
     rms_scale_px: float = 2.0
@@ -119,6 +122,7 @@ class LossConfig:
     hold: bool = True
     score_lost: float = 0.7
     score_good: float = 0.88
+    score_relative: bool = True
 
     def __post_init__(self):
         _need(self.rms_scale_px > 0, "loss.rms_scale_px", f"must be > 0, got {self.rms_scale_px}")
@@ -126,6 +130,8 @@ class LossConfig:
               f"must lie in [0, 1], got {self.min_valid_share}")
         _need(self.max_rms_px > 0, "loss.max_rms_px", f"must be > 0, got {self.max_rms_px}")
         _need(isinstance(self.hold, bool), "loss.hold", f"expected true or false, got {self.hold!r}")
+        _need(isinstance(self.score_relative, bool), "loss.score_relative",
+              f"expected true or false, got {self.score_relative!r}")
         _need(0.0 <= self.score_lost < self.score_good <= 1.0, "loss.score_lost",
               f"need 0 <= score_lost < score_good <= 1, got {self.score_lost}, {self.score_good}")
 

@@ -33,27 +33,35 @@ def confidence_of(rms_px: float, valid_share: float, config: LossConfig | TrackC
     return float(conf), bool(lost)
 
 
-def judge_frame(frontend, images, q, frontend_state, confidence: float, lost: bool, loss: LossConfig
-                ) -> tuple[float, bool, float]:
+def judge_frame(frontend, images, q, frontend_state, confidence: float, lost: bool, loss: LossConfig,
+                reference: float = float("nan")) -> tuple[float, bool, float, float]:
     """The frame's confidence and loss flag with the front end's image score of the estimate ``q``.
 
-    The image term is :func:`jaxhand.score.frame_confidence` of the score alone, a ramp from 0
-    at ``loss.score_lost`` to 1 at ``loss.score_good``; the frame keeps the lower of it and the
-    residual ``confidence``, and is lost when either rule says so. A frame the residual rule has
-    already lost, or a front end without a score (None), is left as it is.
+    The image term is :func:`jaxhand.score.frame_confidence` of the score alone (over
+    ``reference`` with :attr:`LossConfig.score_relative`), a ramp from 0 at ``loss.score_lost``
+    to 1 at ``loss.score_good``; the frame keeps the lower of it and the residual ``confidence``,
+    and is lost when either rule says so. A frame the residual rule has already lost, or a front
+    end without a score (None), is left as it is.
+
+    Args:
+        reference: the first scored frame's score (NaN: this frame's score becomes it, if > 0).
 
     Returns:
-        (confidence, lost, score); score is NaN where none was computed.
+        (confidence, lost, score, reference); score is NaN where none was computed.
     """
+    nan = float("nan")
     if lost:
-        return confidence, lost, float("nan")
+        return confidence, lost, nan, reference
     scores = frontend.score(images, np.asarray(q)[None], frontend_state)
     if scores is None:
-        return confidence, lost, float("nan")
+        return confidence, lost, nan, reference
     score = float(np.asarray(scores).reshape(-1)[0])
-    c_image, lost_image = frame_confidence(score, 0.0, 1.0, ConfidenceConfig(score_lost=loss.score_lost,
-                                                                            score_good=loss.score_good))
-    return min(confidence, float(c_image)), bool(lost_image), score
+    if not reference > 0 and score > 0:   # NaN before the first scored frame
+        reference = score
+    scale = reference if loss.score_relative and reference > 0 else 1.0
+    c_image, lost_image = frame_confidence(score, 0.0, 1.0, ConfidenceConfig(
+        score_lost=loss.score_lost, score_good=loss.score_good, score_reference=scale))
+    return min(confidence, float(c_image)), bool(lost_image), score, reference
 
 
 def held_filter(q_last) -> tuple:

@@ -52,11 +52,14 @@ class TrackState:
         ghk: the filter state, whose x is the prediction for the next frame.
         frontend_state: the front end's state (templates, widths; None before the first frame).
         q_last: the last reported estimate (held on a lost frame).
+        score_reference: the image score of the first scored frame (NaN before it; see
+            :attr:`~jaxhand.track.LossConfig.score_relative`).
     """
 
     ghk: GHKState
     frontend_state: Any
     q_last: np.ndarray
+    score_reference: float = float("nan")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -184,8 +187,9 @@ class Tracker:
         ok, lost = bool(out["solved_ok"]), bool(out["lost"])
         t3 = time.perf_counter()
         timings = {"features": t_features, "solve": t_solve, "filter": t3 - t2}
-        confidence, lost, image_score = judge_frame(self.frontend, images, filtered, fe_state, out["confidence"],
-                                                    lost, self.config.loss)
+        confidence, lost, image_score, reference = judge_frame(self.frontend, images, filtered, fe_state,
+                                                               out["confidence"], lost, self.config.loss,
+                                                               state.score_reference)
         if lost and not out["lost"] and self.config.loss.hold:   # lost by the image score: hold still
             filtered, ghk_next = np.asarray(state.q_last), held_filter(state.q_last)
         if np.isfinite(image_score):
@@ -201,4 +205,4 @@ class Tracker:
                             valid_share=out["valid_share"], confidence=confidence, lost=lost,
                             timings_s=timings, diagnostics=diag, image_score=image_score)
         ghk_next = jax.tree_util.tree_unflatten(self._ghk_tree, ghk_next)
-        return TrackState(ghk=ghk_next, frontend_state=fe_state, q_last=filtered), report
+        return TrackState(ghk=ghk_next, frontend_state=fe_state, q_last=filtered, score_reference=reference), report
