@@ -16,6 +16,10 @@
    alone (what jaxhand's built-in hands have) without the IoU term and relative to the true
    first frame's score (``score_reference``).
 
+3. **Tracked runs** (``--tracked``): the image score as the tracker's confidence and loss flag,
+   levels fitted leave-one-sequence-out on the dev set's tracked frames (:func:`held_out`);
+   writes ``benchmarks/results/score_tracked.json``.
+
 The dev set's forward kinematics come from its ``hand.json`` body list (``tests/mujoco_hand.py``,
 until the MJCF importer exists). Run ``python benchmarks/score.py [--data DIR] [--quick]``; it
 prints tables and writes ``benchmarks/results/score.json``.

@@ -11,6 +11,7 @@ import pytest
 import jaxhand as jh
 from jaxhand.image import ImageConfig
 from jaxhand.io import load_devset, open_frames
+from jaxhand.render import RenderConfig, make_preset, render_frame
 from jaxhand.score import ScoreSection, SkinForeground, ThresholdForeground, capsules_from_model, foreground_for
 from jaxhand.track import (
     AbstractFrontEnd,
@@ -26,7 +27,7 @@ from jaxhand.track import (
 )
 
 DEVSET = Path(__file__).resolve().parent.parent / "data" / "mujoco"
-AUTO = ImageConfig(score=ScoreSection(foreground="auto"))
+AUTO = ImageConfig(score=ScoreSection(foreground="auto"))   # the default, spelled out
 
 
 @pytest.fixture(scope="module")
@@ -134,10 +135,12 @@ def test_a_blank_frame_loses_the_frame_the_residuals_would_keep(opposition):
 
 
 def test_default_behaviour_without_an_image_score(opposition):
-    """The default ImageConfig scores nothing (foreground "none") and a front end without a score
-    leaves the residual rule's confidence and loss flag as they are."""
+    """The image score is on by default; foreground "none" scores nothing, and a front end
+    without a score leaves the residual rule's confidence and loss flag as they are."""
     seq, m = opposition, opposition.model
-    assert ImageFrontEnd(m, seq.cameras).score([_image(seq, 0)], seq.truth.q[:1], None) is None
+    assert ImageConfig().score == AUTO.score
+    off = ImageConfig(score=ScoreSection(foreground="none"))
+    assert ImageFrontEnd(m, seq.cameras, off).score([_image(seq, 0)], seq.truth.q[:1], None) is None
     tracker = Tracker(m, seq.cameras, ExactFrontEnd(m, seq.cameras, seq.truth.q[:3]), TrackConfig(), dt_s=1 / 30)
     state = tracker.init(seq.truth.q[0])
     for k in range(3):
@@ -196,3 +199,24 @@ def test_judge_frame_ramp_reference_and_loss():
     assert judge_frame(_FixedScore(0.64), [None], q, None, 0.95, False, absolute, 0.8)[:2] == (0.0, True)
     conf, lost, score, ref = judge_frame(_FixedScore(0.9), [None], q, None, 0.0, True, loss, 0.8)
     assert (conf, lost, np.isnan(score), ref) == (0.0, True, True, 0.8)
+
+
+def test_the_score_loses_a_drifting_track_on_jaxhands_own_renders():
+    """two_finger_occlusion (jaxhand's renderer, default settings): the tracker drifts from frame 3
+    on (tip error 1.6 px, then 3.0, 4.6, 10.8 px); the image score follows it down (0.962 at the
+    start, the truth scores 0.961 at frame 6) and loses frame 6, which is then held."""
+    seq = make_preset("two_finger_occlusion", frames=80)
+    images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras]
+              for q in seq.q[:8]]
+    fe = ImageFrontEnd(seq.model, seq.cameras, ImageConfig(method="wssd"))
+    tracker = Tracker(seq.model, seq.cameras, fe, TrackConfig(), dt_s=float(seq.times_s[1] - seq.times_s[0]))
+    state, reps = tracker.init(seq.q[0]), []
+    for k in range(8):
+        state, rep = tracker.step(state, images[k], k, float(seq.times_s[k]))
+        reps.append(rep)
+    np.testing.assert_allclose([r.image_score for r in reps[:7]], [0.962, 0.962, 0.957, 0.912, 0.845, 0.783, 0.743],
+                               atol=0.005)
+    assert [r.lost for r in reps] == [False] * 6 + [True] * 2
+    assert reps[4].confidence < 0.5 < reps[3].confidence
+    np.testing.assert_array_equal(reps[6].q_filtered, reps[5].q_filtered)
+    assert fe.score(images[6], seq.q[6:7], None)[0] == pytest.approx(0.961, abs=0.005)

@@ -35,8 +35,10 @@ class ScoreSection:
     background; give a background image instead.
 
     Attributes:
-        foreground: "auto", "threshold", "background" (needs ``background_image``), "skin", or
-            "none": no image score (the tracker judges frames by their residuals alone).
+        foreground: "auto" (the default: on the dev set's held-out runs the score marks bad
+            frames the residuals miss, benchmarks/README.md), "threshold", "background" (needs
+            ``background_image``), "skin", or "none": no image score (the tracker judges frames
+            by their residuals alone).
         threshold_method: :class:`ThresholdForeground` method ("triangle", "otsu", "fixed").
         threshold: the grey level of the "fixed" method (0..255).
         background_image: path of an image of the empty scene, for "background".
@@ -46,7 +48,7 @@ class ScoreSection:
         silhouette: how a silhouette is compared with the frame (:class:`ScoreConfig`).
     """
 
-    foreground: str = "none"
+    foreground: str = "auto"
     threshold_method: str = "triangle"
     threshold: float = 10.0
     background_image: str = ""

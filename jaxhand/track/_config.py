@@ -110,7 +110,8 @@ class LossConfig:
         hold: static. On a lost frame report the last good estimate and predict it standing still.
         score_lost, score_good: host, in [0, 1]. The front end's image score (where it gives one:
             :attr:`jaxhand.image.ImageConfig.score`) of the estimate at which the frame is lost,
-            and above which the image does not lower the confidence (:func:`~jaxhand.track.judge_frame`).
+            and above which the image does not lower the confidence (:func:`~jaxhand.track.judge_frame`);
+            fitted on the dev set's tracked frames (``benchmarks/score.py --tracked``).
         score_relative: host. Apply those levels to the score over the first scored frame's
             (tracking starts from a given pose): the score a right pose reaches differs with the
             view, the foreground model and what the model lacks (a palm, clutter).
@@ -120,8 +121,8 @@ class LossConfig:
     min_valid_share: float = 0.15
     max_rms_px: float = 6.0
     hold: bool = True
-    score_lost: float = 0.7
-    score_good: float = 0.88
+    score_lost: float = 0.801
+    score_good: float = 0.981
     score_relative: bool = True
 
     def __post_init__(self):
