@@ -16,6 +16,10 @@
    alone (what jaxhand's built-in hands have) without the IoU term and relative to the true
    first frame's score (``score_reference``).
 
+3. **Tracked runs** (``--tracked``): the image score as the tracker's confidence and loss flag,
+   levels fitted leave-one-sequence-out on the dev set's tracked frames (:func:`held_out`);
+   writes ``benchmarks/results/score_tracked.json``.
+
 The dev set's forward kinematics come from its ``hand.json`` body list (``tests/mujoco_hand.py``,
 until the MJCF importer exists). Run ``python benchmarks/score.py [--data DIR] [--quick]``; it
 prints tables and writes ``benchmarks/results/score.json``.
@@ -50,6 +54,7 @@ from helpers import fit_camera  # noqa: E402
 import jaxhand as jh  # noqa: E402
 
 jh.enable_x64()
+from jaxhand.io import load_devset, open_frames  # noqa: E402
 from jaxhand.model import builtin_model  # noqa: E402
 from jaxhand.render import render_frame  # noqa: E402
 from jaxhand.score import (  # noqa: E402
@@ -63,6 +68,14 @@ from jaxhand.score import (  # noqa: E402
     image_evidence,
     rasterize,
     score_silhouette,
+)
+from jaxhand.track import (  # noqa: E402
+    ImageFrontEnd,
+    TrackConfig,
+    Tracker,
+    confidence_of,
+    frame_tip_error_px,
+    loss_flag_quality,
 )
 
 TIPS = ("thumb_distal", "index_distal", "middle_distal", "ring_distal", "little_distal")
@@ -187,6 +200,111 @@ def _pooled(samples: list[dict], label: str) -> dict:
     return row
 
 
+DEVSET = ("open_close", "index_over_middle", "thumb_opposition", "wave_two_cameras", "fast_spread",
+          "open_close_noise_clutter")
+
+
+def tracked_frames(data: Path, name: str, levels: tuple[float, float] | None, frames: int | None = None) -> dict:
+    """Track one dev-set sequence from its true first pose (default settings, the image score on
+    with ``foreground="auto"``) and return per frame the image score of the reported estimate,
+    the residual confidence, the confidence and loss flag, and the mean tip error (px).
+
+    ``levels`` = (score_lost, score_good) of :class:`LossConfig`; None records the score without
+    letting it act (levels 0 and 1e-9: no frame with a score above 0 is flagged by it)."""
+    seq = load_devset(data / name)
+    lost_level, good_level = (0.0, 1e-9) if levels is None else levels
+    config = TrackConfig().merged({"image": {"score": {"foreground": "auto"}},
+                                   "loss": {"score_lost": lost_level, "score_good": good_level}})
+    tracker = Tracker(seq.model, seq.cameras, ImageFrontEnd(seq.model, seq.cameras, config.image), config,
+                      dt_s=1 / seq.fps)
+    state = tracker.init(seq.truth.q[0])
+    n = seq.n_frames if frames is None else min(frames, seq.n_frames)
+    rec = {k: [] for k in ("score", "residual_confidence", "confidence", "lost", "q")}
+    for k, frame in enumerate(zip(*open_frames(list(seq.frame_folders), fps=seq.fps))):
+        if k >= n:
+            break
+        state, rep = tracker.step(state, [f.image for f in frame], k)
+        rec["score"].append(rep.image_score)
+        rec["confidence"].append(rep.confidence)
+        rec["lost"].append(rep.lost)
+        rec["q"].append(rep.q_filtered)
+        rec["residual_confidence"].append(confidence_of(rep.rms_px, rep.valid_share, config)[0])
+    err = frame_tip_error_px(seq.model, seq.cameras, np.array(rec.pop("q")), seq.truth.q[:n])
+    return {"sequence": name, "tip_error_px": err.tolist(), **{k: np.asarray(v).tolist() for k, v in rec.items()}}
+
+
+def _relative(record: dict) -> np.ndarray:
+    """A run's recorded scores over its first one (:attr:`LossConfig.score_relative`); NaN (not
+    scored: lost by the residuals) as 1, which the residual flag decides anyway."""
+    s = np.asarray(record["score"], float)
+    return np.where(np.isfinite(s), s, 1.0) / s[0]
+
+
+def fit_levels(records: list[dict], width: float = 0.18) -> tuple[float, float]:
+    """(score_lost, score_good) from tracked frames: the middle of the ramp (confidence 0.5) is
+    the threshold on the relative score that maximises the share of frames > 8 px flagged less
+    the share of frames < 3 px flagged (Youden's J), with the ramp ``width`` wide around it."""
+    score = np.concatenate([_relative(r) for r in records])
+    err = np.concatenate([r["tip_error_px"] for r in records])
+    bad, good = score[err > 8.0], score[err < 3.0]
+    ts = np.linspace(0.5, 1.0, 501)
+    j = [(bad < t).mean() - (good < t).mean() for t in ts]
+    mid = float(ts[int(np.argmax(j))])
+    return mid - width / 2, min(mid + width / 2, 1.0)
+
+
+def flag_shares(records: list[dict], levels: tuple[float, float] | None) -> dict:
+    """:func:`loss_flag_quality` of tracked frames, with the image term at ``levels`` applied to the
+    recorded scores (relative to each run's first; None: the run's own flags)."""
+    err = np.concatenate([r["tip_error_px"] for r in records])
+    conf = np.concatenate([r["confidence"] for r in records])
+    lost = np.concatenate([r["lost"] for r in records]).astype(bool)
+    if levels is not None:
+        resid = np.concatenate([r["residual_confidence"] for r in records])
+        c_img, l_img = frame_confidence(np.concatenate([_relative(r) for r in records]), 0.0, 1.0,
+                                        ConfidenceConfig(score_lost=levels[0], score_good=levels[1]))
+        conf, lost = np.where(lost, 0.0, np.minimum(resid, c_img)), lost | l_img
+    return loss_flag_quality(err, conf, lost)
+
+
+def held_out(data: Path, frames: int | None) -> dict:
+    """Leave one sequence out: per dev sequence, levels fitted on the tracked frames of the other
+    clean sequences (clutter is never fitted on), the flag shares of the held-out sequence's
+    recorded frames with those levels, and of a real run that uses them (loss and hold); pooled
+    over the clean sequences as well."""
+    observed = {name: tracked_frames(data, name, None, frames) for name in DEVSET}
+    rows = []
+    for name in DEVSET:
+        train = [observed[o] for o in DEVSET if o != name and "clutter" not in o]
+        levels = fit_levels(train)
+        real = tracked_frames(data, name, levels, frames)
+        row = {"sequence": name, "score_lost": levels[0], "score_good": levels[1],
+               "residual_only": flag_shares([observed[name]], None), "recorded": flag_shares([observed[name]], levels),
+               "real_run": flag_shares([real], None), "real_run_record": real}
+        rows.append(row)
+        print(f"  {name}: levels {levels[0]:.3f}-{levels[1]:.3f}, residual only {row['residual_only']}, "
+              f"real run {row['real_run']}", flush=True)
+    clean = [r for r in rows if "clutter" not in r["sequence"]]
+    rows.append({"sequence": "pooled clean", "score_lost": float("nan"), "score_good": float("nan"),
+                 "residual_only": flag_shares([observed[r["sequence"]] for r in clean], None),
+                 "recorded": _pooled_recorded(clean, observed),
+                 "real_run": flag_shares([r["real_run_record"] for r in clean], None)})
+    return {"observed": observed, "held_out": rows, "levels_all_clean": fit_levels(
+        [observed[o] for o in DEVSET if "clutter" not in o])}
+
+
+def _pooled_recorded(rows: list[dict], observed: dict) -> dict:
+    """The recorded frames' flags, each sequence with its own held-out levels, pooled."""
+    parts = [flag_shares([observed[r["sequence"]]], (r["score_lost"], r["score_good"])) for r in rows]
+    out = {"bad_px": 8.0, "good_px": 3.0}
+    for cls in ("bad", "good"):
+        n = sum(p[f"frames_{cls}"] for p in parts)
+        out[f"frames_{cls}"] = n
+        out[f"flagged_{cls}"] = sum((p[f"flagged_{cls}"] or 0.0) * p[f"frames_{cls}"] for p in parts) / n if n else None
+    out["frames_flagged"] = sum(p["frames_flagged"] for p in parts)
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     default = REPO / "data" / "mujoco"
@@ -196,7 +314,20 @@ def main(argv=None) -> int:
     ap.add_argument("--trials", type=int, default=12)
     ap.add_argument("--quick", action="store_true", help="stride 30, 4 trials, no JSON")
     ap.add_argument("--samples", action="store_true", help="also write every pose's tip error and scores")
+    ap.add_argument("--tracked", action="store_true", help="only the tracked runs: leave-one-sequence-out levels")
+    ap.add_argument("--frames", type=int, default=None, help="with --tracked: first N frames of each sequence")
     args = ap.parse_args(argv)
+    if args.tracked:
+        out = held_out(args.data, args.frames)
+        cols = ["sequence", "mid", "residual >8px", "residual <3px", "recorded >8px", "recorded <3px",
+                "real >8px", "real <3px", "frames >8px", "frames <3px"]
+        table = [[r["sequence"], 0.5 * (r["score_lost"] + r["score_good"]), r["residual_only"]["flagged_bad"],
+                  r["residual_only"]["flagged_good"], r["recorded"]["flagged_bad"], r["recorded"]["flagged_good"],
+                  r["real_run"]["flagged_bad"], r["real_run"]["flagged_good"], r["real_run"]["frames_bad"],
+                  r["real_run"]["frames_good"]] for r in out["held_out"]]
+        print(format_table(table, cols))
+        write_json({"environment": environment(), **out}, RESULTS / "score_tracked.json")
+        return 0
     if args.quick:
         args.stride, args.trials = 30, 4
     rows_cost = cost()

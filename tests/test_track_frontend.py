@@ -15,6 +15,7 @@ import pytest
 import jaxhand as jh
 from jaxhand.features import features_from_pose
 from jaxhand.render import RenderConfig, make_preset, render_frame
+from jaxhand.score import ScoreSection
 from jaxhand.track import AbstractFrontEnd, ExactFrontEnd, FrontEndDiagnostics, ImageFrontEnd, TrackConfig, Tracker
 
 GOLDEN = Path(__file__).parent / "data" / "track_golden.npz"
@@ -38,8 +39,11 @@ def test_tracking_reproduces_the_golden_runs():
     seq = make_preset("two_finger_occlusion", frames=80)
     images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras]
               for q in seq.q[:8]]
-    wssd = jh.ImageConfig(method="wssd")
-    reacquire = jh.ImageConfig(method="wssd", width_gain=0.1, reacquire_deg=(15.0,))
+    # Recorded before the image score: with it (on by default), frames 6-7 of this drifting run
+    # (tip error 10.8 and 18.3 px) are lost and held (test_score_tracker.py), so it is off here.
+    off = ScoreSection(foreground="none")
+    wssd = jh.ImageConfig(method="wssd", score=off)
+    reacquire = jh.ImageConfig(method="wssd", width_gain=0.1, reacquire_deg=(15.0,), score=off)
     runs = {"image_wssd": (ImageFrontEnd(seq.model, seq.cameras, wssd), TrackConfig()),
             "image_wssd_reacq": (ImageFrontEnd(seq.model, seq.cameras, reacquire), TrackConfig(reextract=0))}
     for name, (frontend, config) in runs.items():

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 
 from .._errors import InputError
+from ..score import ScoreSection
 
 __all__ = ["SamplerConfig", "SearchConfig", "VisibilityConfig", "LineConfig", "TipConfig", "RecentreConfig",
            "WidthConfig", "ImageConfig", "INTERPOLATIONS", "POLARITIES"]
@@ -371,6 +372,8 @@ class ImageConfig:
         reacquire_min_visible: only a link predicted with at least this visible share is searched
             for again: a link partly behind another is missing for that reason, not because it
             turned.
+        score: the global image score of :meth:`~jaxhand.ImageFrontEnd.score` (its foreground
+            model; :class:`jaxhand.score.ScoreSection`).
     """
 
     method: str = "wssd"
@@ -386,6 +389,7 @@ class ImageConfig:
     width_gain: float = 0.0
     reacquire_deg: tuple[float, ...] = ()
     reacquire_min_visible: float = 0.9
+    score: ScoreSection = ScoreSection()
 
     def __post_init__(self):
         from .searches import SEARCH_NAMES

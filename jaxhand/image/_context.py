@@ -8,12 +8,14 @@ import dataclasses
 from collections.abc import Callable, Sequence
 from typing import no_type_check
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 import shapely
 
 from .._errors import InputError
 from ..camera import Perspective, as_rig
-from ..kinematics import validate_q
+from ..kinematics import occluder_pills, pose, validate_q
 from ..model import Model
 from ._config import ImageConfig
 from ._diagnostics import Clock
@@ -21,11 +23,11 @@ from ._geometry import predicted_geometry
 from ._sampling import as_grey, sample_profiles
 from ._state import ImageState
 from ._trackers import LinkSamplers, place_link_samplers
-from ._visibility import Visibility, compute_visibility, same_chain
+from ._visibility import OccluderPills, Visibility, compute_visibility, same_chain
 from ._xy import all_last, finite_xy
 
-__all__ = ["CameraContext", "Observation", "observe", "end_radii", "off_other_links", "against_background",
-           "as_images", "prepare", "matching_state", "layout"]
+__all__ = ["CameraContext", "Observation", "observe", "observe_occluders", "end_radii", "off_other_links",
+           "against_background", "as_images", "prepare", "matching_state", "layout"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -90,17 +92,42 @@ def end_radii(camera, depth: np.ndarray, radius: np.ndarray, ok: np.ndarray) -> 
     return np.where(ok[:, None], r_ends, np.nan)
 
 
+@eqx.filter_jit
+def _occluder_ends(model: Model, camera, q):
+    """(occluders, 2, 2) pixels, (occluders, 2) depths (mm) and radii (px at each end's depth) of
+    the occluder pills' two ends (the kinematics call of :func:`observe_occluders`)."""
+    occ = occluder_pills(model, pose(model, q))
+    ends = jnp.stack([occ.start, occ.end], -2)
+    px, depth = camera.project(ends)
+    J = camera.pixel_jacobian(ends)  # a sphere's image radius: r times the local scale (px per mm)
+    return px, depth, occ.radius_mm[:, None] * jnp.abs(jnp.linalg.det(J @ jnp.swapaxes(J, -1, -2))) ** 0.25
+
+
+def observe_occluders(model: Model, camera, q: np.ndarray) -> OccluderPills | None:
+    """The model's occluder-only pills (palm, forearm) seen by ``camera`` at ``q``; None for a
+    model without occluders. Ends behind a perspective camera get NaN (their outline is empty)."""
+    if not model.n_occluders:
+        return None
+    px, depth, radius = (np.asarray(a, float) for a in _occluder_ends(model, camera, np.asarray(q, float)))
+    behind = ~(depth > 0) if isinstance(camera, Perspective) else np.zeros(depth.shape, bool)
+    radius = np.where(behind, np.nan, radius)
+    return OccluderPills(start_px=px[:, 0], end_px=px[:, 1], depth=depth, radius_start=radius[:, 0],
+                         radius_end=radius[:, 1])
+
+
 def observe(ctx: CameraContext, q: np.ndarray) -> Observation:
-    """Steps 1-3 of the pipeline at pose ``q``: kinematics, samplers, visibility, profiles."""
+    """Steps 1-3 of the pipeline at pose ``q``: kinematics, samplers, visibility (cut by the
+    model's occluder pills too), profiles."""
     config, clock = ctx.config, ctx.clock
     geo = predicted_geometry(ctx.model, ctx.camera, q)
     start, end, depth, radius = geo.start, geo.end, geo.depth, geo.radius
+    occluders = observe_occluders(ctx.model, ctx.camera, q)
     clock.lap("kinematics")
     samplers = place_link_samplers(start, end, radius, config.samplers)
     clock.lap("samplers")
     r_ends = end_radii(ctx.camera, depth, radius, samplers.ok)
     vis = compute_visibility(start, end, depth, r_ends[:, 0], r_ends[:, 1], ctx.chain, ctx.camera.size,
-                             config.visibility)
+                             config.visibility, occluders)
     clock.lap("visibility")
     values, usable = sample_profiles(ctx.grey, samplers.points, config.samplers.interpolation)
     clock.lap("sampling")

@@ -24,8 +24,7 @@ import shapely
 from ._config import VisibilityConfig
 from ._xy import dot_xy, finite_xy, nan_to_num
 
-__all__ = ["Visibility", "pill_outlines", "same_chain", "compute_visibility", "window_masks", "convex_edges",
-           "inside_polygons"]
+__all__ = ["Visibility", "OccluderPills", "pill_outlines", "same_chain", "compute_visibility", "window_masks"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -245,9 +244,27 @@ def same_chain(link_frame, ancestors: np.ndarray) -> np.ndarray:
     return a | a.T
 
 
+@dataclasses.dataclass(frozen=True)
+class OccluderPills:
+    """Occluder-only pills (a palm, a forearm) seen by one camera: they cut the windows and visible
+    polygons of the links behind them, like the links of other chains, and have no window.
+
+    Attributes:
+        start_px, end_px: (occluders, 2) projected segment ends.
+        depth: (occluders, 2) depth of the two ends (mm).
+        radius_start, radius_end: (occluders,) radius in pixels at each end.
+    """
+
+    start_px: np.ndarray
+    end_px: np.ndarray
+    depth: np.ndarray
+    radius_start: np.ndarray
+    radius_end: np.ndarray
+
+
 def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarray, radius_start: np.ndarray,
                        radius_end: np.ndarray, chain: np.ndarray, image_size: tuple[int, int],
-                       config: VisibilityConfig) -> Visibility:
+                       config: VisibilityConfig, occluders: OccluderPills | None = None) -> Visibility:
     """Depth-sort the pills and cut each by the nearer pills of other chains (thesis §4.3.3).
 
     Args:
@@ -257,32 +274,47 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
         chain: (links, links) :func:`same_chain`.
         image_size: (width, height), for the share of each link inside the image.
         config: visibility settings.
+        occluders: occluder-only pills, which cut every link they lie nearer than (None or empty:
+            none, and the result is that of the links alone).
     """
     outlines = pill_outlines(start_px, end_px, radius_start, radius_end, config.arc_points, config.simplify_px)
-    mean_depth = np.nan_to_num(np.asarray(depth, float).mean(-1), nan=np.inf, posinf=np.inf, neginf=np.inf)
+    mean_depth = _mean_depth(depth)
     order = np.argsort(-mean_depth, kind="stable")
     radius = 0.5 * (nan_to_num(radius_start) + nan_to_num(radius_end))
     pad = config.window_pad * radius
     L = len(outlines)
-    empty = shapely.is_empty(outlines)
-    cut = bool(config.occlusion and L > 1)
-    nearer = np.zeros((L, L), bool)
-    covers = outlines
+    chain = np.asarray(chain, bool)
+    # Every pill that may cut a window: the links, then the occluders (the columns of ``nearer``).
+    cutters, cutter_depth, cover_pills = outlines, mean_depth, None
+    if occluders is not None and len(occluders.start_px):
+        o = occluders
+        cutters = np.concatenate([outlines, pill_outlines(o.start_px, o.end_px, o.radius_start, o.radius_end,
+                                                          config.arc_points, config.simplify_px)])
+        cutter_depth = np.concatenate([mean_depth, _mean_depth(o.depth)])
+        chain = np.hstack([chain, np.zeros((L, len(o.start_px)), bool)])  # an occluder is on no link's chain
+        cover_pills = _pills(np.concatenate([start_px, o.start_px]), np.concatenate([end_px, o.end_px]),
+                             np.concatenate([radius_start, o.radius_start]),
+                             np.concatenate([radius_end, o.radius_end]), config)
+    P = len(cutters)
+    empty = shapely.is_empty(cutters)
+    cut = bool(config.occlusion and P > 1)
+    nearer = np.zeros((L, P), bool)
+    covers = cutters
     grown = None
     if cut:
         grown = _grow(outlines, pad)
         b = nan_to_num(shapely.bounds(grown))
-        candidate = (mean_depth[None, :] < mean_depth[:, None]) & ~np.asarray(chain, bool) & ~empty[None, :]
+        candidate = (cutter_depth[None, :] < mean_depth[:, None]) & ~chain & ~empty[None, :]
         m = config.occluder_margin_px
         if m > 0:
             # A cover lies within its outline's box grown by the margin: only the pills whose grown
             # box meets a candidate's box are buffered (the others cut no window).
-            o = nan_to_num(shapely.bounds(outlines)) + np.array([-1.0, -1.0, 1.0, 1.0]) * (m * _BUFFER_OVER + 1e-9)
+            o = nan_to_num(shapely.bounds(cutters)) + np.array([-1.0, -1.0, 1.0, 1.0]) * (m * _BUFFER_OVER + 1e-9)
             candidate &= _boxes_meet(b, o)
             used = np.flatnonzero(candidate.any(0))
-            covers = np.full(L, None, dtype=object)
-            covers[used] = shapely.buffer(outlines[used], m, quad_segs=4)
-            c = np.zeros((L, 4))
+            covers = np.full(P, None, dtype=object)
+            covers[used] = shapely.buffer(cutters[used], m, quad_segs=4)
+            c = np.zeros((P, 4))
             c[used] = nan_to_num(shapely.bounds(covers[used]))
         else:
             c = nan_to_num(shapely.bounds(covers))
@@ -297,7 +329,7 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
         for n, i in enumerate(cut_rows):
             key = nearer[i].tobytes()
             if key not in unions:
-                unions[key] = shapely.union_all(outlines[nearer[i]])
+                unions[key] = shapely.union_all(cutters[nearer[i]])
             occl[n] = unions[key]
         visible = outlines.copy()
         if len(cut_rows):
@@ -319,10 +351,16 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
     pills = _pills(start_px, end_px, radius_start, radius_end, config)
     vis = Visibility(outlines=outlines, depth=mean_depth, order=order, visible=visible,
                      visible_share=np.clip(share, 0.0, 1.0), pad_px=pad, nearer=nearer, covers=covers, cut=cut,
-                     pills=pills, cover_pills=pills, margin_px=float(config.occluder_margin_px))
+                     pills=pills, cover_pills=pills if cover_pills is None else cover_pills,
+                     margin_px=float(config.occluder_margin_px))
     if grown is not None:
         vis.__dict__["grown"] = grown  # already built for the bounds (the cached property's slot)
     return vis
+
+
+def _mean_depth(depth) -> np.ndarray:
+    """(pills,) mean depth of each pill's two ends (mm); not finite: infinitely far."""
+    return np.nan_to_num(np.asarray(depth, float).mean(-1), nan=np.inf, posinf=np.inf, neginf=np.inf)
 
 
 def _boxes_meet(b: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -348,102 +386,3 @@ def window_masks(polygons: np.ndarray, points: np.ndarray) -> np.ndarray:
     x = np.where(finite, pts[..., 0], 0.0)
     y = np.where(finite, pts[..., 1], 0.0)
     return shapely.contains_xy(geoms, x, y) & finite
-
-
-def convex_edges(polygons: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Edges of convex polygons padded to one length, oriented so the interior lies to the left.
-
-    Returns:
-        (start, vector, present): (n, V, 2) edge starts and vectors (padding repeats edge 0), and
-        (n,) the polygon is non-empty; None when a polygon is neither empty nor a convex polygon
-        without holes (then the caller falls back to shapely).
-    """
-    geoms = np.asarray(polygons, dtype=object).reshape(-1)
-    n = len(geoms)
-    present = ~shapely.is_empty(geoms)
-    if not present.any():
-        return np.zeros((n, 1, 2)), np.zeros((n, 1, 2)), present
-    if np.any(shapely.get_type_id(geoms[present]) != 3) or np.any(shapely.get_num_interior_rings(geoms[present]) > 0):
-        return None
-    coords, index = shapely.get_coordinates(shapely.get_exterior_ring(geoms), return_index=True)
-    counts = np.bincount(index, minlength=n) - 1  # rings are closed: edges = coordinates - 1
-    if np.any(counts[present] < 3):
-        return None
-    V = int(counts.max())
-    first = np.concatenate([[0], np.cumsum(counts + 1)[:-1]])
-    k = np.arange(V)
-    # Edge k of polygon i runs from coordinate first[i] + k to first[i] + k + 1; padding repeats edge 0.
-    kk = np.where(k[None, :] < counts[:, None], k[None, :], 0)
-    a_idx = np.where(present[:, None], first[:, None] + kk, 0)
-    a = coords[a_idx]
-    e = coords[np.where(present[:, None], a_idx + 1, 0)] - a
-    # Orientation from the signed area; a clockwise ring is flipped to counter-clockwise.
-    cross_ae = a[..., 0] * e[..., 1] - a[..., 1] * e[..., 0]
-    valid_edge = k[None, :] < counts[:, None]
-    area2 = np.where(valid_edge, cross_ae, 0.0).sum(-1)
-    if np.any(area2[present] == 0):
-        return None
-    sign = np.where(area2 < 0, -1.0, 1.0)[:, None, None]
-    # Convex: every turn between consecutive edges, in the ring's own order, is to the side of
-    # its orientation (or straight, within rounding: a point near such a vertex is within the
-    # callers' tolerance of both edges' lines and is decided by shapely).
-    nxt = np.roll(e, -1, axis=1)
-    nxt = np.where((k[None, :] == counts[:, None] - 1)[..., None], e[:, :1], nxt)
-    turn = sign[..., 0] * (e[..., 0] * nxt[..., 1] - e[..., 1] * nxt[..., 0])
-    slack = 1e-12 * np.linalg.norm(e, axis=-1) * np.linalg.norm(nxt, axis=-1)
-    if np.any((turn < -slack) & valid_edge & present[:, None]):
-        return None
-    a = np.where(sign < 0, a + e, a)
-    e = e * sign
-    return a, e, present
-
-
-def inside_polygons(polygons: np.ndarray, points: np.ndarray, *, tol: float = 1e-9, edges=False) -> np.ndarray:
-    """(..., n) True where each point lies strictly inside each of ``n`` convex polygons.
-
-    The same predicate as ``shapely.contains_xy`` (boundary points are outside, NaN points are
-    outside every polygon), computed in NumPy from edge cross products for convex polygons
-    (pill outlines are simplified convex hulls); points within ``tol`` (relative) of an edge line
-    and non-convex input are decided by shapely itself.
-
-    Args:
-        polygons: (n,) polygons (empty ones contain nothing).
-        points: (..., 2) positions (x, y).
-        edges: ``convex_edges(polygons)`` when already computed (False: compute them here).
-    """
-    geoms = np.asarray(polygons, dtype=object).reshape(-1)
-    pts = np.asarray(points, float)
-    lead = pts.shape[:-1]
-    flat = pts.reshape(-1, 2)
-    finite = finite_xy(flat)
-    x = np.where(finite, flat[:, 0], 0.0)
-    y = np.where(finite, flat[:, 1], 0.0)
-    edges = convex_edges(geoms) if edges is False else edges
-    if edges is None:
-        # Only the pairs whose point lies within the polygon's bounding box are asked of shapely;
-        # a point outside it is outside the polygon (and an empty polygon's NaN box holds none).
-        b = shapely.bounds(geoms)
-        cand = ((x[:, None] >= b[None, :, 0]) & (x[:, None] <= b[None, :, 2]) & (y[:, None] >= b[None, :, 1])
-                & (y[:, None] <= b[None, :, 3]) & finite[:, None])
-        out = np.zeros(cand.shape, bool)
-        p, g = np.nonzero(cand)
-        if len(p):
-            shapely.prepare(geoms)
-            out[p, g] = shapely.contains_xy(geoms[g], x[p], y[p])
-        return out.reshape(lead + (len(geoms),))
-    a, e, present = edges
-    # cross(e, p - a) > 0 on the interior side of every edge: (points, n, V).
-    c = (e[None, :, :, 0] * (y[:, None, None] - a[None, :, :, 1])
-         - e[None, :, :, 1] * (x[:, None, None] - a[None, :, :, 0]))
-    m = c.min(-1)
-    out = (m > 0) & present[None, :] & finite[:, None]
-    # Near an edge, rounding could differ from GEOS's robust predicate: ask shapely there.
-    extent = np.abs(a).max((1, 2))[None, :] + 1.0
-    scale = np.abs(e).max((1, 2))[None, :] * (np.abs(x)[:, None] + np.abs(y)[:, None] + extent)
-    near = (np.abs(m) <= tol * scale) & present[None, :] & finite[:, None]
-    if near.any():
-        p, g = np.nonzero(near)
-        shapely.prepare(geoms)
-        out[p, g] = shapely.contains_xy(geoms[g], x[p], y[p])
-    return out.reshape(lead + (len(geoms),))
-

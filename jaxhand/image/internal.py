@@ -8,21 +8,14 @@ from ._context import CameraContext, Observation, against_background, as_images,
 from ._diagnostics import CameraDiagnostics, Clock
 from ._geometry import Geometry, predicted_geometry
 from ._lines import axial_line, line_params, line_point_direction, offset_towards, ransac_pca
+from ._polygons import convex_edges, inside_polygons
 from ._reacquire import reacquire, reacquire_full, search_turns, turns_to_try
 from ._regression import imwplls, mwplls, plls
 from ._sampling import INTERPOLATION_FLAGS, as_grey, sample_profiles
 from ._templates import seen_axis_offsets, shift_profiles, take_templates
 from ._trackers import LinkSamplers, TipSamplers, place_link_samplers, place_tip_samplers, refine_tip
 from ._view import LineFit, TipFit, View, edges_to_px, find_tips, fit_links, search_view
-from ._visibility import (
-    Visibility,
-    compute_visibility,
-    convex_edges,
-    inside_polygons,
-    pill_outlines,
-    same_chain,
-    window_masks,
-)
+from ._visibility import OccluderPills, Visibility, compute_visibility, pill_outlines, same_chain, window_masks
 from ._widths import width_ratios
 from .searches import SEARCHES, TEMPLATE_SEARCHES, Edges, Profiles, search_named
 from .searches._common import (
@@ -42,7 +35,7 @@ __all__ = [
     "CameraContext", "Observation", "observe", "Geometry", "predicted_geometry", "off_other_links",
     "against_background", "CameraDiagnostics", "Clock",
     "LinkSamplers", "TipSamplers", "place_link_samplers", "place_tip_samplers", "refine_tip",
-    "Visibility", "compute_visibility", "pill_outlines", "same_chain", "window_masks", "convex_edges",
+    "Visibility", "OccluderPills", "compute_visibility", "pill_outlines", "same_chain", "window_masks", "convex_edges",
     "inside_polygons", "ransac_pca", "axial_line", "line_params", "line_point_direction", "offset_towards",
     "plls", "mwplls", "imwplls", "LineFit", "TipFit", "View", "edges_to_px", "fit_links", "find_tips",
     "search_view", "reacquire", "reacquire_full", "search_turns", "turns_to_try", "seen_axis_offsets", "shift_profiles",

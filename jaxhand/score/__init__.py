@@ -16,6 +16,8 @@ judge (here). The tracker, once per frame:
   :class:`SkinForeground` (colour video).
 - :class:`ScoreConfig`, :class:`ImageScore`, :func:`score_frame`: IoU, coverage and chamfer in [0, 1].
 - :class:`ConfidenceConfig`, :func:`frame_confidence`: the loss rule.
+- :class:`ScoreSection` (``ImageConfig.score``), :func:`foreground_for`: the image front end's
+  settings, and the foreground model they choose for a frame.
 """
 
 from ._confidence import ConfidenceConfig as ConfidenceConfig
@@ -33,6 +35,9 @@ from ._score import model_contour as model_contour
 from ._score import score_frame as score_frame
 from ._score import score_poses as score_poses
 from ._score import score_silhouette as score_silhouette
+from ._section import FOREGROUNDS as FOREGROUNDS
+from ._section import ScoreSection as ScoreSection
+from ._section import foreground_for as foreground_for
 from ._silhouette import CameraNumbers as CameraNumbers
 from ._silhouette import Capsules as Capsules
 from ._silhouette import Silhouette as Silhouette
@@ -46,4 +51,5 @@ __all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsule
            "capsules_from_model_batch", "capsule_outlines",
            "rasterize", "AbstractForeground", "ThresholdForeground", "BackgroundForeground", "SkinForeground",
            "as_grey", "ScoreConfig", "ImageEvidence", "ImageScore", "image_evidence", "model_contour",
-           "score_silhouette", "score_frame", "score_poses", "ConfidenceConfig", "frame_confidence"]
+           "score_silhouette", "score_frame", "score_poses", "ConfidenceConfig", "frame_confidence", "FOREGROUNDS",
+           "ScoreSection", "foreground_for"]

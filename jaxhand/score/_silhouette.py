@@ -33,7 +33,7 @@ from jaxtyping import Bool, Float, Int
 
 from .._errors import InputError
 from ..camera import Orthographic, Perspective
-from ..kinematics import forward, pose
+from ..kinematics import Pills, all_pills, check_q_shape, pose
 from ..model import Model
 
 __all__ = ["Capsules", "capsules_from_model", "capsules_from_model_batch", "capsules_in_camera", "CameraNumbers",
@@ -120,26 +120,38 @@ class Capsules:
         return len(self.radius_mm)
 
 
-def capsules_from_model(model: Model, q) -> Capsules:
-    """The model's pills at state q (one jitted kinematics call), as world-frame capsules."""
-    pose = forward(model, jnp.asarray(q, dtype=model.q_lower.dtype))
-    return Capsules(start=np.asarray(pose.link_start, float), end=np.asarray(pose.link_end, float),
-                    radius_mm=np.asarray(model.link_radius_mm, float), occluder=np.zeros(model.n_links, bool))
+def _pills(model: Model, q) -> Pills:
+    """Every pill of the model (links, then occluder pills) at state q."""
+    return all_pills(model, pose(model, q))
 
 
+_pills_one = eqx.filter_jit(_pills)
 # One compiled kinematics call for a stack of states (hypotheses); the model is shared.
-_pose_batch = eqx.filter_jit(jax.vmap(pose, in_axes=(None, 0)))
+_pills_batch = eqx.filter_jit(jax.vmap(_pills, in_axes=(None, 0)))
+
+
+def _capsules(model: Model, start, end, radius) -> Capsules:
+    occ = np.arange(len(radius)) >= model.n_links   # the model's occluder pills come after its links
+    return Capsules(start=np.asarray(start, float), end=np.asarray(end, float), radius_mm=np.asarray(radius, float),
+                    occluder=occ)
+
+
+def capsules_from_model(model: Model, q) -> Capsules:
+    """The model's pills at state q (one jitted kinematics call), as world-frame capsules: its
+    links, then its occluder-only pills (palm, forearm; flagged ``occluder``)."""
+    check_q_shape(model, q)
+    p = _pills_one(model, jnp.asarray(q, dtype=model.q_lower.dtype))
+    return _capsules(model, p.start, p.end, p.radius_mm)
 
 
 def capsules_from_model_batch(model: Model, qs) -> list[Capsules]:
-    """The model's pills at each state of ``qs`` (k, n_q), from one jitted, vmapped kinematics call."""
+    """:func:`capsules_from_model` at each state of ``qs`` (k, n_q), from one jitted, vmapped call."""
     qs = jnp.asarray(qs, dtype=model.q_lower.dtype)
     if qs.ndim != 2 or qs.shape[1] != model.n_q:
         raise InputError(f"qs: expected shape (k, {model.n_q}) for model {model.name!r}, got {qs.shape}")
-    p = _pose_batch(model, qs)
-    start, end = np.asarray(p.link_start, float), np.asarray(p.link_end, float)
-    radius, occ = np.asarray(model.link_radius_mm, float), np.zeros(model.n_links, bool)
-    return [Capsules(start=start[i], end=end[i], radius_mm=radius, occluder=occ) for i in range(len(start))]
+    p = _pills_batch(model, qs)
+    start, end, radius = (np.asarray(a, float) for a in (p.start, p.end, p.radius_mm))
+    return [_capsules(model, start[i], end[i], radius[i]) for i in range(len(start))]
 
 
 def capsules_in_camera(capsules: Capsules, cam: CameraNumbers

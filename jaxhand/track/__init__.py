@@ -7,7 +7,8 @@
   analysis) and :class:`ExactFrontEnd` (exact features of a known truth, for experiments);
 - :class:`Tracker` (``init``, ``step``), :class:`TrackState`, :class:`StepReport`;
 - :func:`track_sequence` (frames from disk to ``angles.csv``, ``summary.json``, overlay video)
-  and :func:`accuracy_summary`; :func:`frame_score`, the loss rule.
+  and :func:`accuracy_summary`; :func:`frame_score`, the loss rule, and :func:`judge_frame`, its
+  combination with the front end's image score.
 """
 
 from ._compiled import reweight
@@ -25,14 +26,15 @@ from ._config import (
     save_track_config,
 )
 from ._frontend import AbstractFrontEnd, ExactFrontEnd, FrontEndDiagnostics, FrontEndResult, ImageFrontEnd
-from ._score import confidence_of, frame_score
-from ._sequence import accuracy_summary, track_sequence
+from ._score import confidence_of, frame_score, judge_frame
+from ._sequence import accuracy_summary, frame_tip_error_px, loss_flag_quality, track_sequence
 from ._tracker import StepReport, Tracker, TrackState
 
 __all__ = [
     "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "TRACK_CONFIG_VERSION",
     "config_to_dict", "config_from_dict", "config_to_toml", "save_track_config", "load_track_config",
     "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd",
-    "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary",
-    "frame_score", "confidence_of", "reweight",
+    "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary", "frame_tip_error_px",
+    "loss_flag_quality",
+    "frame_score", "confidence_of", "judge_frame", "reweight",
 ]

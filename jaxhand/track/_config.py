@@ -108,12 +108,22 @@ class LossConfig:
         min_valid_share: traced, in [0, 1]. Below this share of valid feature slots the frame is lost.
         max_rms_px: traced, px. Above this residual RMS the frame is lost.
         hold: static. On a lost frame report the last good estimate and predict it standing still.
+        score_lost, score_good: host, in [0, 1]. The front end's image score (where it gives one:
+            :attr:`jaxhand.image.ImageConfig.score`) of the estimate at which the frame is lost,
+            and above which the image does not lower the confidence (:func:`~jaxhand.track.judge_frame`);
+            fitted on the dev set's tracked frames (``benchmarks/score.py --tracked``).
+        score_relative: host. Apply those levels to the score over the first scored frame's
+            (tracking starts from a given pose): the score a right pose reaches differs with the
+            view, the foreground model and what the model lacks (a palm, clutter).
     """
 
     rms_scale_px: float = 2.0
     min_valid_share: float = 0.15
     max_rms_px: float = 6.0
     hold: bool = True
+    score_lost: float = 0.801
+    score_good: float = 0.981
+    score_relative: bool = True
 
     def __post_init__(self):
         _need(self.rms_scale_px > 0, "loss.rms_scale_px", f"must be > 0, got {self.rms_scale_px}")
@@ -121,6 +131,10 @@ class LossConfig:
               f"must lie in [0, 1], got {self.min_valid_share}")
         _need(self.max_rms_px > 0, "loss.max_rms_px", f"must be > 0, got {self.max_rms_px}")
         _need(isinstance(self.hold, bool), "loss.hold", f"expected true or false, got {self.hold!r}")
+        _need(isinstance(self.score_relative, bool), "loss.score_relative",
+              f"expected true or false, got {self.score_relative!r}")
+        _need(0.0 <= self.score_lost < self.score_good <= 1.0, "loss.score_lost",
+              f"need 0 <= score_lost < score_good <= 1, got {self.score_lost}, {self.score_good}")
 
 
 def _off(value) -> float:

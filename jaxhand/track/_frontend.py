@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import abc
 import dataclasses
+import hashlib
 from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
@@ -19,6 +20,14 @@ from ..features import Features, features_from_pose
 from ..image import ImageConfig, ImageState, WindowOutlines, capture_templates, extract_features, update_widths
 from ..image.searches import TEMPLATE_SEARCHES
 from ..model import Model
+from ..score import (
+    camera_numbers,
+    capsules_from_model_batch,
+    foreground_for,
+    image_evidence,
+    rasterize,
+    score_silhouette,
+)
 
 __all__ = ["AbstractFrontEnd", "FrontEndDiagnostics", "FrontEndResult", "ImageFrontEnd", "ExactFrontEnd"]
 
@@ -84,7 +93,8 @@ class ImageFrontEnd(AbstractFrontEnd):
     ``config.width_gain`` > 0 the radii measured at the hand-set pose replace the model's at
     once. :meth:`refresh` re-estimates the widths and re-takes the templates at the solved pose
     (thesis §4.3.1: templates come from unoccluded views); a search that keeps no templates with
-    no width estimate returns the state untouched.
+    no width estimate returns the state untouched. :meth:`score` scores poses with
+    ``config.score`` (None when its foreground is "none").
     """
 
     reextracts: ClassVar[bool] = True
@@ -92,6 +102,8 @@ class ImageFrontEnd(AbstractFrontEnd):
     def __init__(self, model: Model, cameras, config: ImageConfig | None = None):
         self.model, self.cameras = model, as_rig(cameras)
         self.config = ImageConfig() if config is None else config
+        self._cams = tuple(camera_numbers(c) for c in self.cameras) if self.config.score.enabled else ()
+        self._evidence: tuple[tuple[bytes, ...], tuple] | None = None   # the last frame's, by content
 
     def extract(self, images, q_start, state: ImageState | None, frame: int) -> FrontEndResult:
         q = np.asarray(q_start)
@@ -110,6 +122,32 @@ class ImageFrontEnd(AbstractFrontEnd):
         if self.config.method not in TEMPLATE_SEARCHES:
             return state
         return capture_templates(images, self.model, self.cameras, q, self.config, state)
+
+    def score(self, images, qs, state) -> np.ndarray | None:
+        """The mean over cameras of :func:`jaxhand.score.score_silhouette` of each pose (the
+        model's pills and occluder pills drawn) against each camera's image. The frame's evidence
+        (foreground and edge distance) is computed once and kept for further calls on the same
+        images (recognised by their content)."""
+        section = self.config.score
+        if not section.enabled:
+            return None
+        qs = np.asarray(qs, float).reshape(-1, self.model.n_q)
+        evidence = self._frame_evidence(images)
+        scores = np.zeros((len(qs), len(self.cameras)))
+        for k, caps in enumerate(capsules_from_model_batch(self.model, qs)):
+            for c, (cam, ev) in enumerate(zip(self._cams, evidence)):
+                sil = rasterize(caps, cam, rim_points=section.silhouette.rim_points)
+                scores[k, c] = score_silhouette(sil, ev, section.silhouette).score
+        return scores.mean(1)
+
+    def _frame_evidence(self, images) -> tuple:
+        key = tuple(hashlib.blake2b(np.ascontiguousarray(im), digest_size=16).digest() + repr(np.shape(im)).encode()
+                    for im in images)
+        if self._evidence is None or self._evidence[0] != key:
+            section = self.config.score
+            self._evidence = (key, tuple(image_evidence(im, foreground_for(section, im), section.silhouette)
+                                         for im in images))
+        return self._evidence[1]
 
 
 class ExactFrontEnd(AbstractFrontEnd):

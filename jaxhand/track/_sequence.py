@@ -37,7 +37,7 @@ from ._config import TrackConfig, config_to_dict
 from ._frontend import AbstractFrontEnd, ImageFrontEnd
 from ._tracker import StepReport, Tracker
 
-__all__ = ["track_sequence", "accuracy_summary"]
+__all__ = ["track_sequence", "accuracy_summary", "frame_tip_error_px", "loss_flag_quality"]
 
 BLUE, RED, GREEN = (255, 80, 0), (0, 0, 255), (0, 200, 0)
 
@@ -103,6 +103,30 @@ def accuracy_summary(model: Model, cameras: Camera | Sequence[Camera], q_est: Fl
         rot = np.degrees(2.0 * np.arccos(np.clip(cos, 0.0, 1.0)))
         out["palm_rotation_deg"] = {"mean": float(rot.mean()), "max": float(rot.max())}
     return out
+
+
+def frame_tip_error_px(model: Model, cameras: Camera | Sequence[Camera], q_est: Float[ArrayLike, "frames nq"],
+                       q_truth: Float[ArrayLike, "frames nq"]) -> np.ndarray:
+    """(frames,) the mean 2-D distance (px) of the estimated tips from the true ones, over tips and cameras."""
+    rig = as_rig(cameras)
+    est, true = (np.asarray(_tips_px(model, rig, np.asarray(q, float))) for q in (q_est, q_truth))
+    return np.linalg.norm(est - true, axis=-1).mean(axis=(0, 2))
+
+
+def loss_flag_quality(tip_error_px, confidence, lost, *, bad_px: float = 8.0, good_px: float = 3.0) -> dict:
+    """How well the loss flag marks bad frames (issue 13): a frame is *flagged* when it is lost or
+    its confidence is below 0.5; of the frames whose mean tip error exceeds ``bad_px`` the share
+    flagged (should be high), of those below ``good_px`` the share flagged (should be low).
+    Shares are None where no frame falls in the class."""
+    err = np.asarray(tip_error_px, float)
+    flagged = np.asarray(lost, bool) | (np.asarray(confidence, float) < 0.5)
+    bad, good = err > bad_px, err < good_px
+
+    def share(sel):
+        return float(flagged[sel].mean()) if sel.any() else None
+
+    return {"bad_px": bad_px, "good_px": good_px, "frames_bad": int(bad.sum()), "flagged_bad": share(bad),
+            "frames_good": int(good.sum()), "flagged_good": share(good), "frames_flagged": int(flagged.sum())}
 
 
 def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, frontend: AbstractFrontEnd | None = None,
@@ -376,6 +400,8 @@ def _summary(model, cameras, tracker, state, writer, out, fps, config, truth, q0
         if q_t is not None:
             summary["accuracy_filtered"] = accuracy_summary(model, cameras, q_f, q_t)
             summary["accuracy_solved"] = accuracy_summary(model, cameras, q_s, q_t)
+            summary["loss_flag"] = loss_flag_quality(frame_tip_error_px(model, cameras, q_f, q_t),
+                                                     cols["confidence"], lost)
         plot_joint_angles(model, times, q_f, out / "angles.png", q_truth=q_t, q_raw=q_s)
     radius = state.frontend_state.radius_mm if isinstance(state.frontend_state, ImageState) else None
     if radius is not None:   # the front end's phalanx width estimate (ImageConfig.width_gain)

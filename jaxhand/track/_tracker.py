@@ -10,7 +10,9 @@ Per frame k (thesis fig. 1.2):
    iterations, including the thesis's fast mode of one update per frame), with robust passes;
 4. **filter**: refine q̃_k with the g-h-k update (eqs. 5.1-5.3) into the reported estimate;
 5. score the frame: residual RMS (px) and the share of valid features give a confidence in
-   [0, 1] and a loss-of-track flag. A failed or non-finite solve keeps the prediction.
+   [0, 1] and a loss-of-track flag, lowered by the front end's image score of the estimate
+   where it gives one (:func:`~jaxhand.track.judge_frame`). A failed or non-finite solve keeps
+   the prediction.
 
 Steps 3-5 run as one compiled program (:mod:`jaxhand.track._compiled`); the loop over frames is
 host Python.
@@ -37,6 +39,7 @@ from ..solve import STATUS_NAMES
 from ._compiled import FEATURE_FIELDS, SCALARS, FrameProgram
 from ._config import TrackConfig
 from ._frontend import AbstractFrontEnd, FrontEndDiagnostics
+from ._score import held_filter, judge_frame
 
 __all__ = ["TrackState", "StepReport", "Tracker"]
 
@@ -49,11 +52,14 @@ class TrackState:
         ghk: the filter state, whose x is the prediction for the next frame.
         frontend_state: the front end's state (templates, widths; None before the first frame).
         q_last: the last reported estimate (held on a lost frame).
+        score_reference: the image score of the first scored frame (NaN before it; see
+            :attr:`~jaxhand.track.LossConfig.score_relative`).
     """
 
     ghk: GHKState
     frontend_state: Any
     q_last: np.ndarray
+    score_reference: float = float("nan")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,6 +80,7 @@ class StepReport:
     lost: bool
     timings_s: Mapping[str, float]
     diagnostics: FrontEndDiagnostics
+    image_score: float = float("nan")   # the front end's score of q_filtered (NaN: none)
 
 
 class Tracker:
@@ -180,6 +187,13 @@ class Tracker:
         ok, lost = bool(out["solved_ok"]), bool(out["lost"])
         t3 = time.perf_counter()
         timings = {"features": t_features, "solve": t_solve, "filter": t3 - t2}
+        confidence, lost, image_score, reference = judge_frame(self.frontend, images, filtered, fe_state,
+                                                               out["confidence"], lost, self.config.loss,
+                                                               state.score_reference)
+        if lost and not out["lost"] and self.config.loss.hold:   # lost by the image score: hold still
+            filtered, ghk_next = np.asarray(state.q_last), held_filter(state.q_last)
+        if np.isfinite(image_score):
+            timings["score"], t3 = time.perf_counter() - t3, time.perf_counter()
         if not lost and self.config.refresh_templates:
             fe_state = self.frontend.refresh(images, q_meas, fe_state)
             timings["templates"] = time.perf_counter() - t3
@@ -188,7 +202,7 @@ class Tracker:
         report = StepReport(frame=frame, time_s=time_s, q_pred=np.asarray(q_pred_host), q_solved=q_meas,
                             q_filtered=filtered, cost=out["cost"] if ok else float("nan"), rms_px=out["rms_px"],
                             iterations=int(out["iterations"]), status=STATUS_NAMES[int(out["status"])],
-                            valid_share=out["valid_share"], confidence=out["confidence"], lost=lost,
-                            timings_s=timings, diagnostics=diag)
+                            valid_share=out["valid_share"], confidence=confidence, lost=lost,
+                            timings_s=timings, diagnostics=diag, image_score=image_score)
         ghk_next = jax.tree_util.tree_unflatten(self._ghk_tree, ghk_next)
-        return TrackState(ghk=ghk_next, frontend_state=fe_state, q_last=filtered), report
+        return TrackState(ghk=ghk_next, frontend_state=fe_state, q_last=filtered, score_reference=reference), report
