@@ -169,15 +169,14 @@ class Tracker:
 
     def _extra_starts(self, state: TrackState, proposals, frame: int):
         """The host's extra starts of this frame (:func:`extra_starts`), or None when the frame has
-        the prediction alone (the default, single-start program)."""
+        the prediction alone (the single-start program, as by default)."""
         hyp = self.config.hypotheses
         proposals = None if proposals is None else check_proposals(self.model, proposals, frame)
-        recovering = state.lost and (hyp.recover > 0 or proposals is not None)
         if not (hyp.enabled or proposals is not None):
             return None
-        q_pred = np.asarray(state.ghk.x)
-        return extra_starts(self.model, hyp, q_pred, state.q_solved, state.carried, proposals,
-                            state.q_last if recovering else None, frame)
+        extras = extra_starts(self.model, hyp, np.asarray(state.ghk.x), state.q_solved, state.carried, proposals,
+                              state.q_last if state.lost else None, frame)
+        return extras if len(extras[0]) or hyp.flips else None   # recovery alone: a frame after a good one
 
     def _solve_hypotheses(self, feats, ghk, state: TrackState, extras, images, fe_state) -> _Picked:
         """Every start solved in one call, the front end's score of the candidates, the winner
