@@ -43,6 +43,12 @@ SETTINGS = {
     # information-weighted (issue 13 item 5)
     "info0.1+solve": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "information_ratio": 0.1},
                       "filter": {"report_solve": True}},
+    # multiple hypotheses (issue 13 item 4): 4 starts (prediction, 2 flips, last solve)
+    "hyp4": {"hypotheses": {"flips": 2, "last_solve": True}},
+    # 8 starts: 4 flips, the last solve, 2 carried runners-up
+    "hyp8+carry": {"hypotheses": {"flips": 4, "last_solve": True, "carry": 2}},
+    # 4 starts, and 8 more around the last good pose after a lost frame (item 7)
+    "hyp4+recover": {"hypotheses": {"flips": 2, "last_solve": True, "recover": 8}},
 }
 
 

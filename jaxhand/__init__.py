@@ -26,6 +26,7 @@ from .track import (  # noqa: E402
     AbstractFrontEnd,
     ExactFrontEnd,
     FilterConfig,
+    HypothesisConfig,
     ImageFrontEnd,
     LossConfig,
     PriorConfig,
@@ -53,6 +54,6 @@ __all__ = [
     "extract_features", "capture_templates", "ImageConfig", "ImageState",
     "Features", "features_from_pose",
     "Tracker", "TrackState", "StepReport", "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig",
-    "load_track_config", "save_track_config", "AbstractFrontEnd", "ImageFrontEnd", "ExactFrontEnd",
+    "HypothesisConfig", "load_track_config", "save_track_config", "AbstractFrontEnd", "ImageFrontEnd", "ExactFrontEnd",
     "track_sequence", "accuracy_summary",
 ]

@@ -1,8 +1,8 @@
 """Tracking: a model through frames, one front end, one compiled solve-and-filter step per frame.
 
 - :class:`TrackConfig` (with :class:`FilterConfig`, :class:`RobustConfig`, :class:`LossConfig`, :class:`PriorConfig`,
-  a :class:`~jaxhand.FitConfig` and an :class:`~jaxhand.ImageConfig`): every setting of a run,
-  saved to and loaded from TOML (:func:`save_track_config`, :func:`load_track_config`);
+  :class:`HypothesisConfig`, a :class:`~jaxhand.FitConfig` and an :class:`~jaxhand.ImageConfig`): every setting of a
+  run, saved to and loaded from TOML (:func:`save_track_config`, :func:`load_track_config`);
 - :class:`AbstractFrontEnd` and its final implementations :class:`ImageFrontEnd` (the image
   analysis) and :class:`ExactFrontEnd` (exact features of a known truth, for experiments);
 - :class:`Tracker` (``init``, ``step``), :class:`TrackState`, :class:`StepReport`;
@@ -15,6 +15,7 @@ from ._compiled import reweight
 from ._config import (
     TRACK_CONFIG_VERSION,
     FilterConfig,
+    HypothesisConfig,
     LossConfig,
     PriorConfig,
     RobustConfig,
@@ -31,7 +32,8 @@ from ._sequence import accuracy_summary, frame_tip_error_px, loss_flag_quality, 
 from ._tracker import StepReport, Tracker, TrackState
 
 __all__ = [
-    "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "TRACK_CONFIG_VERSION",
+    "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig",
+    "TRACK_CONFIG_VERSION",
     "config_to_dict", "config_from_dict", "config_to_toml", "save_track_config", "load_track_config",
     "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd",
     "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary", "frame_tip_error_px",

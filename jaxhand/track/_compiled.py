@@ -36,8 +36,8 @@ from ..solve.internal import fit_traced, solver_program
 from ._config import TrackConfig
 from ._score import frame_score
 
-__all__ = ["FrameProgram", "frame_step", "robust_solve", "gate", "reweight", "filter_update", "SCALARS",
-           "FEATURE_FIELDS"]
+__all__ = ["FrameProgram", "frame_step", "solve_frame", "finish_frame", "step_constants", "robust_solve", "gate",
+           "reweight", "filter_update", "SCALARS", "FEATURE_FIELDS"]
 
 #: The scalars of a :class:`_StepOut`, in the order :func:`_frame_jit` packs them.
 SCALARS = ("solved_ok", "cost", "iterations", "status", "rms_px", "valid_share", "confidence", "lost",
@@ -175,16 +175,24 @@ def robust_solve(model: Model, rig: tuple, feats: tuple, q0, build, fit_config, 
     return jax.lax.fori_loop(0, passes + 1, one_pass, start)
 
 
-def frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, q_start, build, fit_config,
-               numbers: _StepNumbers, passes: int, use_filter: bool, hold: bool, priors: _Priors | None = None,
-               report_solve: bool = False) -> _StepOut:
-    """One frame after feature extraction: the robust solve from ``q_start`` (the prediction
-    ``ghk.x``, or an earlier solve of this frame that the features were searched around) with
-    the ``priors`` (the temporal one around ``ghk.x``), the score and loss flag (of the image
-    residuals alone), the g-h-k update and prediction (with ``report_solve`` the solve is
-    reported and predicted from; with ``hold``, a lost frame holds ``q_last`` still), and the
-    features' value check."""
-    q_pred = ghk.x
+class _Solved(eqx.Module):
+    """One start's robust solve of a frame, judged by its image residuals alone: ``q`` is the
+    measurement the filter takes (the prediction when the solve was not finite)."""
+
+    q: Float[Array, " nq"]
+    ok: Bool[Array, ""]
+    cost: Float[Array, ""]
+    iterations: Int[Array, ""]
+    status: Int[Array, ""]
+    rms_px: Float[Array, ""]
+    valid_share: Float[Array, ""]
+
+
+def solve_frame(model: Model, rig: tuple, feats: tuple, q_pred, q_start, build, fit_config, numbers: _StepNumbers,
+                passes: int, priors: _Priors | None = None) -> _Solved:
+    """The robust solve of one frame from ``q_start`` with the ``priors`` (the temporal one
+    around the prediction ``q_pred``), its image cost and residual RMS (px) and the share of
+    valid feature slots: what :func:`frame_step` runs once, and the hypotheses once per start."""
     fractions = fit_config.link_fractions
     # the information of the front end's own weights: the gate would shrink it wherever the
     # prediction is off, and so hold the solve back exactly where it has to move
@@ -205,8 +213,23 @@ def frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, q_
     rms = jnp.where(ok, jnp.sqrt(2.0 * jnp.where(ok, cost, 0.0) / n_res), jnp.inf)
     total = sum(f.line_valid.shape[-1] + f.tip_valid.shape[-1] for f in feats)
     share = (n_tips + n_lines).astype(dtype) / max(total, 1)
-    conf, lost = frame_score(rms, share, numbers.rms_scale_px, numbers.min_valid_share, numbers.max_rms_px)
-    filtered, ghk_next = filter_update(model, ghk, q_meas, numbers.theta, numbers.dt_s, use_filter,
+    return _Solved(q=q_meas, ok=ok, cost=cost, iterations=result.iterations, status=result.status._value,
+                   rms_px=rms, valid_share=share)
+
+
+def features_ok(feats: tuple) -> Bool[Array, ""]:
+    """Whether every feature passes its value checks (:func:`jaxhand.features.feature_value_checks`)."""
+    return functools.reduce(jnp.logical_and, [c for f in feats for c in feature_value_checks(f)])
+
+
+def finish_frame(model: Model, ghk: GHKState, q_last, solved: _Solved, checks_ok, numbers: _StepNumbers,
+                 use_filter: bool, hold: bool, report_solve: bool = False) -> _StepOut:
+    """The frame's score and loss flag from the chosen solve, then the g-h-k update and prediction
+    (with ``report_solve`` the solve is reported and predicted from; with ``hold``, a lost frame
+    holds ``q_last`` still)."""
+    conf, lost = frame_score(solved.rms_px, solved.valid_share, numbers.rms_scale_px, numbers.min_valid_share,
+                             numbers.max_rms_px)
+    filtered, ghk_next = filter_update(model, ghk, solved.q, numbers.theta, numbers.dt_s, use_filter,
                                        report_solve)
     if hold:
         # A lost frame's solve fits stray features: hold the last good estimate still (zero
@@ -214,10 +237,21 @@ def frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, q_
         filtered = jnp.where(lost, q_last, filtered)
         ghk_next = GHKState(x=jnp.where(lost, q_last, ghk_next.x), v=jnp.where(lost, 0.0, ghk_next.v),
                             a=jnp.where(lost, 0.0, ghk_next.a))
-    features_ok = functools.reduce(jnp.logical_and, [c for f in feats for c in feature_value_checks(f)])
-    return _StepOut(q_solved=q_meas, solved_ok=ok, cost=cost, iterations=result.iterations,
-                    status=result.status._value, q_filtered=filtered, ghk=ghk_next, rms_px=rms,
-                    valid_share=share, confidence=conf, lost=lost, features_ok=features_ok)
+    return _StepOut(q_solved=solved.q, solved_ok=solved.ok, cost=solved.cost, iterations=solved.iterations,
+                    status=solved.status, q_filtered=filtered, ghk=ghk_next, rms_px=solved.rms_px,
+                    valid_share=solved.valid_share, confidence=conf, lost=lost, features_ok=checks_ok)
+
+
+def frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, q_start, build, fit_config,
+               numbers: _StepNumbers, passes: int, use_filter: bool, hold: bool, priors: _Priors | None = None,
+               report_solve: bool = False) -> _StepOut:
+    """One frame after feature extraction: the robust solve from ``q_start`` (the prediction
+    ``ghk.x``, or an earlier solve of this frame that the features were searched around) with
+    the ``priors`` (the temporal one around ``ghk.x``; :func:`solve_frame`), the score and loss
+    flag (of the image residuals alone), the g-h-k update and prediction (:func:`finish_frame`),
+    and the features' value check."""
+    solved = solve_frame(model, rig, feats, ghk.x, q_start, build, fit_config, numbers, passes, priors)
+    return finish_frame(model, ghk, q_last, solved, features_ok(feats), numbers, use_filter, hold, report_solve)
 
 
 class _Static:
@@ -255,6 +289,19 @@ def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last,
     return (out.q_solved, out.q_filtered, scalars), (out.ghk.x, out.ghk.v, out.ghk.a)
 
 
+def step_constants(model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float) -> tuple:
+    """The constant arguments of :func:`frame_step` after the frame's own, in its order (model, rig,
+    build, fit_config, numbers, passes, use_filter, hold, priors, report_solve), the solver and its
+    options checked once here: what :class:`FrameProgram` (and the hypotheses' program) split."""
+    build, fit_config = solver_program(config.solver, config.fit)
+    numbers = _StepNumbers(*(jnp.asarray(float(v)) for v in (
+        theta, dt_s, config.robust.scale_px, config.robust.gate_scale_px, config.loss.rms_scale_px,
+        config.loss.min_valid_share, config.loss.max_rms_px)))
+    priors = _Priors.of(model, config.prior)
+    return (model, rig, build, fit_config, numbers, config.robust.passes, config.filter.enabled, config.loss.hold,
+            priors, config.filter.report_solve)
+
+
 class FrameProgram:
     """The frame program of one tracker: its constant arguments split once, called per frame.
 
@@ -265,14 +312,7 @@ class FrameProgram:
     """
 
     def __init__(self, model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float):
-        build, fit_config = solver_program(config.solver, config.fit)
-        numbers = _StepNumbers(*(jnp.asarray(float(v)) for v in (
-            theta, dt_s, config.robust.scale_px, config.robust.gate_scale_px, config.loss.rms_scale_px,
-            config.loss.min_valid_share, config.loss.max_rms_px)))
-        priors = _Priors.of(model, config.prior)
-        consts, static = eqx.partition((model, rig, build, fit_config, numbers, config.robust.passes,
-                                        config.filter.enabled, config.loss.hold, priors,
-                                        config.filter.report_solve), eqx.is_array)
+        consts, static = eqx.partition(step_constants(model, rig, config, theta, dt_s), eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(consts)
         self._consts, self._static = tuple(leaves), _Static((treedef, static))
 

@@ -27,7 +27,8 @@ from ..image import ImageConfig
 from ..solve import FitConfig, solver_named
 from ..solve.internal import check_config
 
-__all__ = ["TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "config_to_dict",
+__all__ = ["TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig",
+           "config_to_dict",
            "config_from_dict",
            "save_track_config", "load_track_config", "config_to_toml", "TRACK_CONFIG_VERSION"]
 
@@ -184,6 +185,64 @@ class PriorConfig:
         return bool(self.temporal_sigma_deg or self.temporal_sigma_mm)
 
 
+def _count(value, where: str) -> None:
+    _need(isinstance(value, int) and not isinstance(value, bool) and value >= 0, where,
+          f"expected an integer >= 0, got {value!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class HypothesisConfig:
+    """Several starts per frame, solved in one vectorised call, the best kept (thesis ch. 7, "a
+    bank of filters"; :mod:`jaxhand.track._hypotheses`). All off by default: one solve from the
+    prediction, as the thesis does. The starts: the prediction, then ``flips``, ``last_solve``,
+    the carried runners-up, the caller's proposals and, after a lost frame, ``recover``.
+
+    Attributes:
+        flips: static. Starts from the prediction with one of its most poorly observed joints
+            (smallest image-Jacobian column at the prediction) pushed by +/- ``flip_deg``, in
+            pairs, worst joint first.
+        flip_deg: traced, deg. How far a flip start pushes its joint.
+        last_solve: static. Also start from the last frame's solve.
+        carry: static. Runners-up carried to the next frame as extra starts (at most this many).
+        carry_margin: host, in [0, 1]. A runner-up is carried when its merit is at least this
+            share of the winner's (the score could not decide between them).
+        carry_min_deg: host, deg. ...and it differs from the winner by more than this in some joint.
+        recover: static. Starts around the last good pose on each frame after a lost one, until
+            a frame is not lost (0: none; the prediction then is that pose alone).
+        recover_deg: host, deg. Sigma of the recovery starts' joint angles around the last good pose.
+        recover_mm: host, mm. The same for length entries (base translation, prismatic joints).
+        seed: host. Seed of the recovery starts (frame k's are drawn from ``(seed, k)``).
+    """
+
+    flips: int = 0
+    flip_deg: float = 25.0
+    last_solve: bool = False
+    carry: int = 0
+    carry_margin: float = 0.9
+    carry_min_deg: float = 5.0
+    recover: int = 0
+    recover_deg: float = 15.0
+    recover_mm: float = 10.0
+    seed: int = 0
+
+    def __post_init__(self):
+        for name in ("flips", "carry", "recover", "seed"):
+            _count(getattr(self, name), f"hypotheses.{name}")
+        _need(isinstance(self.last_solve, bool), "hypotheses.last_solve",
+              f"expected true or false, got {self.last_solve!r}")
+        for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm"):
+            value = getattr(self, name)
+            _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                  and value >= 0, f"hypotheses.{name}", f"expected a finite number >= 0, got {value!r}")
+        _need(0.0 <= self.carry_margin <= 1.0, "hypotheses.carry_margin",
+              f"must lie in [0, 1], got {self.carry_margin}")
+
+    @property
+    def enabled(self) -> bool:
+        """Whether any start besides the prediction is configured (static)."""
+        return bool(self.flips or self.last_solve or self.carry or self.recover)
+
+
 def _tracker_fit() -> FitConfig:
     # The tracker's solve: 20 iterations per frame and the geometric Jacobian (several times
     # cheaper on the CPU than autodiff, equal to rounding; benchmarks/README.md).
@@ -205,6 +264,8 @@ class TrackConfig:
         robust: the gate and robust passes (:class:`RobustConfig`).
         loss: the frame's score and the loss rule (:class:`LossConfig`).
         prior: pose priors in the solve (:class:`PriorConfig`; all off by default).
+        hypotheses: several starts per frame and recovery after a loss (:class:`HypothesisConfig`;
+            all off by default).
         reextract: host. Times the front end searches again around the solved pose, then the
             frame is solved again from there (for front ends whose ``reextracts`` is true).
         refresh_templates: host. After a frame that is not lost, let the front end refresh its
@@ -218,13 +279,15 @@ class TrackConfig:
     robust: RobustConfig = dataclasses.field(default_factory=RobustConfig)
     loss: LossConfig = dataclasses.field(default_factory=LossConfig)
     prior: PriorConfig = dataclasses.field(default_factory=PriorConfig)
+    hypotheses: HypothesisConfig = dataclasses.field(default_factory=HypothesisConfig)
     reextract: int = 1
     refresh_templates: bool = True
 
     def __post_init__(self):
         solver_named(self.solver)
         for name, kind in (("fit", FitConfig), ("image", ImageConfig), ("filter", FilterConfig),
-                           ("robust", RobustConfig), ("loss", LossConfig), ("prior", PriorConfig)):
+                           ("robust", RobustConfig), ("loss", LossConfig), ("prior", PriorConfig),
+                           ("hypotheses", HypothesisConfig)):
             _need(isinstance(getattr(self, name), kind), name,
                   f"expected a {kind.__name__}, got {type(getattr(self, name)).__name__}")
         try:

@@ -14,7 +14,7 @@ import dataclasses
 import sys
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import cv2
@@ -132,7 +132,7 @@ def loss_flag_quality(tip_error_px, confidence, lost, *, bad_px: float = 8.0, go
 def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, frontend: AbstractFrontEnd | None = None,
                    *, config: TrackConfig | None = None, truth: np.ndarray | None = None, video: bool = True,
                    progress: bool | None = None, max_frames: int | None = None, overwrite: bool = False,
-                   resume: bool = False) -> dict:
+                   resume: bool = False, proposals: Callable[[int], np.ndarray | None] | None = None) -> dict:
     """Track ``model`` through ``sources`` (one :class:`~jaxhand.io.FrameSource` per camera, or
     any iterables of :class:`~jaxhand.io.Frame` with ``fps`` and ``len``).
 
@@ -154,6 +154,9 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
         max_frames: stop after this many frames (>= 1).
         overwrite: replace an earlier run in ``out_dir`` (else it is an error to mix runs).
         resume: continue the interrupted run in ``out_dir``.
+        proposals: ``frame -> (k, n_q)`` extra starting poses of that frame (or None), e.g. a
+            landmark fit; they join the hypotheses (:attr:`TrackConfig.hypotheses`). The summary
+            counts the re-initialisations (frames not lost after a lost one) and the winning starts.
 
     Returns:
         The summary written to ``summary.json``.
@@ -195,7 +198,7 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
                        "state": f"re-initialised at the filtered pose of frame {writer.last_frame} with zero "
                                 "velocity (the filter's velocity and the front end's templates start afresh)"}
         return _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, truth, video, progress,
-                    q0, resumed)
+                    q0, resumed, proposals)
 
 
 def _check_view(model: Model, cameras, q) -> None:
@@ -284,6 +287,13 @@ class _Timings:
     def __init__(self):
         self.data: dict[str, np.ndarray] = {}
         self.n = 0
+        self.hypotheses: dict[str, int] = {}   # the winning kind of start -> frames
+        self.reinitialisations = 0
+
+    def tally(self, report: StepReport) -> None:
+        """Count the frame's winning start and whether it re-initialised the track."""
+        self.hypotheses[report.hypothesis] = self.hypotheses.get(report.hypothesis, 0) + 1
+        self.reinitialisations += bool(report.reinitialised)
 
     def add(self, timings) -> None:
         for k, v in timings.items():
@@ -300,7 +310,7 @@ class _Timings:
 
 
 def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, truth, video, progress, q0,
-         resumed) -> dict:
+         resumed, proposals=None) -> dict:
     vw = None
     start = 0 if resumed is None else resumed["after_frame"] + 1
     timings = _Timings()
@@ -325,9 +335,11 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
                 bar.update(1)
                 continue
             images = [f.image for f in frames]
-            state, rep = tracker.step(state, images, frame, frames[0].time_s)
+            state, rep = tracker.step(state, images, frame, frames[0].time_s,
+                                      None if proposals is None else proposals(frame))
             count += 1
             timings.add(rep.timings_s)
+            timings.tally(rep)
             writer.write(rep.frame, rep.time_s, rep.q_filtered, rep.confidence, rep.lost, q_pred=rep.q_pred,
                          q_solved=rep.q_solved, cost=rep.cost, rms_px=rep.rms_px, iterations=rep.iterations)
             if video:
@@ -394,6 +406,8 @@ def _summary(model, cameras, tracker, state, writer, out, fps, config, truth, q0
             "lost_frames": int(lost.sum()),
             "mean_confidence": float(np.mean(cols["confidence"])),
             "mean_iterations": float(np.mean(cols["iterations"])),
+            "reinitialisations": timings.reinitialisations,
+            "hypothesis_wins": dict(sorted(timings.hypotheses.items())),
         })
         idx, q_f, q_s, times = cols["frame"], cols["q"], cols["q_solved"], cols["time_s"]
         q_t = None if truth is None else np.asarray(truth)[idx]

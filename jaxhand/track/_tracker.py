@@ -39,6 +39,7 @@ from ..solve import STATUS_NAMES
 from ._compiled import FEATURE_FIELDS, SCALARS, FrameProgram
 from ._config import TrackConfig
 from ._frontend import AbstractFrontEnd, FrontEndDiagnostics
+from ._hypotheses import HypothesisProgram, check_proposals, choose, extra_starts, runners_up
 from ._score import held_filter, judge_frame
 
 __all__ = ["TrackState", "StepReport", "Tracker"]
@@ -54,12 +55,18 @@ class TrackState:
         q_last: the last reported estimate (held on a lost frame).
         score_reference: the image score of the first scored frame (NaN before it; see
             :attr:`~jaxhand.track.LossConfig.score_relative`).
+        q_solved: the last frame's solve (a start with :attr:`HypothesisConfig.last_solve`).
+        carried: the runners-up carried as extra starts (:attr:`HypothesisConfig.carry`), (m, n_q).
+        lost: whether the last frame was lost (the next frames then recover, :attr:`HypothesisConfig.recover`).
     """
 
     ghk: GHKState
     frontend_state: Any
     q_last: np.ndarray
     score_reference: float = float("nan")
+    q_solved: np.ndarray | None = None
+    carried: np.ndarray | None = None
+    lost: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -81,6 +88,21 @@ class StepReport:
     timings_s: Mapping[str, float]
     diagnostics: FrontEndDiagnostics
     image_score: float = float("nan")   # the front end's score of q_filtered (NaN: none)
+    hypothesis: str = "prediction"   # the kind of start that won (jaxhand.track._hypotheses.LABELS)
+    starts: int = 1                  # the starts solved
+    reinitialised: bool = False      # the first frame not lost after a lost one
+
+
+@dataclasses.dataclass(frozen=True)
+class _Picked:
+    """The first round's choice among the starts: the winner's packed results, its label, the
+    runners-up to carry, the number of starts, and the seconds the front end's score took."""
+
+    results: tuple = ()
+    label: str = "prediction"
+    carried: np.ndarray | None = None
+    starts: int = 1
+    score_s: float = 0.0
 
 
 class Tracker:
@@ -114,6 +136,7 @@ class Tracker:
         #: the g-h-k discount per frame at this frame interval (FilterConfig.theta_rate_hz)
         self.theta = config.filter.theta_per_frame(self.dt_s)
         self._program = FrameProgram(model, self.cameras, config, self.theta, self.dt_s)
+        self._hypotheses = HypothesisProgram(model, self.cameras, config, self.theta, self.dt_s)
         self._rounds = 1 + (config.reextract if frontend.reextracts else 0)
         self._dtype = jnp.asarray(0.0).dtype   # the working precision of the compiled step
         self._lower, self._upper = np.asarray(model.q_lower), np.asarray(model.q_upper)
@@ -151,8 +174,49 @@ class Tracker:
         q0 = validate_q(self.model, q0, name="initial pose", within_limits=True)
         return TrackState(ghk=ghk_init(jnp.asarray(q0)), frontend_state=frontend_state, q_last=q0)
 
-    def step(self, state: TrackState, images: Sequence[np.ndarray | None], frame: int = 0, time_s: float = 0.0
-             ) -> tuple[TrackState, StepReport]:
+    def _extra_starts(self, state: TrackState, proposals, frame: int):
+        """The host's extra starts of this frame (:func:`extra_starts`), or None when the frame has
+        the prediction alone (the single-start program, as by default)."""
+        hyp = self.config.hypotheses
+        proposals = None if proposals is None else check_proposals(self.model, proposals, frame)
+        if not (hyp.enabled or proposals is not None):
+            return None
+        extras = extra_starts(self.model, hyp, np.asarray(state.ghk.x), state.q_solved, state.carried, proposals,
+                              state.q_last if state.lost else None, frame)
+        return extras if len(extras[0]) or hyp.flips else None   # recovery alone: a frame after a good one
+
+    def _solve_hypotheses(self, feats, ghk, state: TrackState, extras, images, fe_state) -> _Picked:
+        """Every start solved in one call, the front end's score of the candidates, the winner
+        committed (:mod:`jaxhand.track._hypotheses`)."""
+        rows, valid, labels = extras
+        hyp = self.config.hypotheses
+        cands = self._hypotheses.candidates(feats, ghk, jnp.asarray(rows, self._dtype), jnp.asarray(valid))
+        qs, merit = (np.asarray(a) for a in jax.device_get((cands.solved.q, cands.merit)))
+        t0 = time.perf_counter()
+        winner, total = choose(merit, self._scores(images, qs, merit, fe_state))
+        t_score = time.perf_counter() - t0
+        carried = runners_up(qs, total, winner, hyp.carry, hyp.carry_margin, float(np.radians(hyp.carry_min_deg)),
+                             np.asarray(self.model.is_angle))
+        labels = ("prediction",) + ("flip",) * self._hypotheses.n_flips + labels
+        return _Picked(self._hypotheses.commit(cands, winner, ghk, state.q_last), labels[winner], carried,
+                       len(merit), t_score)
+
+    def _scores(self, images, qs: np.ndarray, merit: np.ndarray, fe_state) -> np.ndarray | None:
+        """The front end's image score of the candidates that solved (0 for the others), or None."""
+        good = np.flatnonzero(merit >= 0)
+        scores = self.frontend.score(images, qs[good], fe_state) if len(good) else None
+        if scores is None:
+            return None
+        scores = np.asarray(scores, float)
+        if scores.shape != good.shape or not np.all((scores >= 0) & (scores <= 1)):
+            raise InputError(f"{type(self.frontend).__name__}.score: expected {len(good)} scores in [0, 1] (one per "
+                             f"candidate pose), got {np.array2string(scores, precision=3)}")
+        full = np.zeros(len(merit))
+        full[good] = scores
+        return full
+
+    def step(self, state: TrackState, images: Sequence[np.ndarray | None], frame: int = 0, time_s: float = 0.0,
+             proposals=None) -> tuple[TrackState, StepReport]:
         """Process one frame (one image per camera; ``frame`` is passed to the front end).
 
         After the front end, the compiled frame program runs and its results come back in one
@@ -160,6 +224,11 @@ class Tracker:
         (the report on the host) split the frame. With ``config.reextract`` (and a front end
         whose ``reextracts`` is true) the front end and the program run again from the solved
         pose; ``features`` and ``solve`` then add up every round.
+
+        With :attr:`TrackConfig.hypotheses` or ``proposals`` (a caller's (k, n_q) starting poses
+        for this frame, e.g. a landmark fit), the first round solves every start in one call and
+        keeps the best (:mod:`jaxhand.track._hypotheses`; the front end's ``score`` timed as
+        ``score``); later rounds refine the winner.
         """
         if len(images) != len(self.cameras):
             raise InputError(f"expected one image per camera ({len(self.cameras)}), got {len(images)}")
@@ -167,17 +236,23 @@ class Tracker:
         ghk = (state.ghk.x, state.ghk.v, state.ghk.a)
         t_features = t_solve = 0.0
         q_start, fe_state = q_pred, state.frontend_state
-        for _ in range(self._rounds):
+        extras = self._extra_starts(state, proposals, frame)
+        picked = _Picked()
+        for r in range(self._rounds):
             t0 = time.perf_counter()
             extracted = self.frontend.extract(images, q_start, fe_state, frame)
             fe_state = extracted.state
             t1 = time.perf_counter()
-            (q_meas, filtered, scalars), ghk_next = self._program(self._feature_arrays(extracted.features), ghk,
-                                                                  state.q_last, q_start)
+            feats = self._feature_arrays(extracted.features)
+            if r == 0 and extras is not None:
+                picked = self._solve_hypotheses(feats, ghk, state, extras, images, fe_state)
+                (q_meas, filtered, scalars), ghk_next = picked.results
+            else:
+                (q_meas, filtered, scalars), ghk_next = self._program(feats, ghk, state.q_last, q_start)
             q_pred_host, q_meas, filtered, scalars = jax.device_get((q_pred, q_meas, filtered, scalars))  # one fetch
             out = dict(zip(SCALARS, scalars.tolist()))
             t2 = time.perf_counter()
-            t_features, t_solve = t_features + (t1 - t0), t_solve + (t2 - t1)
+            t_features, t_solve = t_features + (t1 - t0), t_solve + (t2 - t1) - (picked.score_s if r == 0 else 0.0)
             if not out["features_ok"] or out["lost"]:  # nothing better to search around
                 break
             q_start = np.clip(q_meas, self._lower, self._upper)
@@ -192,8 +267,9 @@ class Tracker:
                                                                state.score_reference)
         if lost and not out["lost"] and self.config.loss.hold:   # lost by the image score: hold still
             filtered, ghk_next = np.asarray(state.q_last), held_filter(state.q_last)
-        if np.isfinite(image_score):
-            timings["score"], t3 = time.perf_counter() - t3, time.perf_counter()
+        if np.isfinite(image_score) or extras is not None:
+            timings["score"] = picked.score_s + (time.perf_counter() - t3)
+            t3 = time.perf_counter()
         if not lost and self.config.refresh_templates:
             fe_state = self.frontend.refresh(images, q_meas, fe_state)
             timings["templates"] = time.perf_counter() - t3
@@ -203,6 +279,8 @@ class Tracker:
                             q_filtered=filtered, cost=out["cost"] if ok else float("nan"), rms_px=out["rms_px"],
                             iterations=int(out["iterations"]), status=STATUS_NAMES[int(out["status"])],
                             valid_share=out["valid_share"], confidence=confidence, lost=lost,
-                            timings_s=timings, diagnostics=diag, image_score=image_score)
+                            timings_s=timings, diagnostics=diag, image_score=image_score, hypothesis=picked.label,
+                            starts=picked.starts, reinitialised=state.lost and not lost)
         ghk_next = jax.tree_util.tree_unflatten(self._ghk_tree, ghk_next)
-        return TrackState(ghk=ghk_next, frontend_state=fe_state, q_last=filtered, score_reference=reference), report
+        return TrackState(ghk=ghk_next, frontend_state=fe_state, q_last=filtered, score_reference=reference,
+                          q_solved=q_meas, carried=picked.carried, lost=lost), report

@@ -1,0 +1,236 @@
+"""Several starts per frame (thesis ch. 7, "a bank of filters"; Cham and Rehg 1998).
+
+A frame's features are extracted once, around the prediction; every start is then solved in one
+vectorised call (``jax.vmap`` of :func:`~jaxhand.track._compiled.solve_frame`), each candidate
+is judged by a robust image residual (:func:`image_merit`) times the front end's global image
+score when it has one (:meth:`AbstractFrontEnd.score`), and the winner goes through the loss rule
+and the filter (:func:`~jaxhand.track._compiled.finish_frame`).
+
+The host/jit split: :class:`HypothesisProgram` makes two calls per frame, the candidates
+(:func:`_candidates_jit`) and, after the host has scored them and chosen (:func:`choose`), the
+commit of the winner (:func:`_commit_jit`), whose results pack like the single-start program's.
+The default tracker (one start) never comes here.
+
+The starts, in order (their labels in :data:`LABELS`): the prediction; ``flips`` of it with the
+most poorly observed joints pushed either way (:func:`flip_starts`); then the host's extra starts
+(:func:`extra_starts`): the last solve, the runners-up carried from the frame before, the
+caller's proposals and, on the frames after a lost one, starts around the last good pose
+(:func:`recovery_starts`).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Float
+
+from .._errors import InputError
+from ..features import Features
+from ..filter import GHKState
+from ..kinematics import clip_q
+from ..model import Model
+from ..residuals import ResidualArgs, feature_distances, residuals_and_jacobian
+from ._compiled import SCALARS, _Solved, _Static, features_ok, finish_frame, solve_frame, step_constants
+from ._config import HypothesisConfig, TrackConfig
+
+__all__ = ["HypothesisProgram", "flip_starts", "image_merit", "choose", "runners_up", "recovery_starts",
+           "extra_starts", "LABELS"]
+
+#: The kinds of start, as :attr:`StepReport.hypothesis` names the winner's.
+LABELS = ("prediction", "flip", "last_solve", "carried", "proposal", "recover")
+
+
+def _flippable(model: Model) -> np.ndarray:
+    """Indices of the joint angles a flip may push (not the base's entries)."""
+    return np.array([i for i, k in enumerate(model.q_kinds) if k == "angle" and i >= model.n_base_q], int)
+
+
+def flip_starts(model: Model, rig: tuple, feats: tuple, q_pred, n: int, flip_rad, fractions
+                ) -> Float[Array, "n nq"]:
+    """``n`` starts from ``q_pred`` with its most poorly observed joints (the smallest columns of
+    the image Jacobian at ``q_pred``, with the front end's weights) pushed by ``+flip_rad`` then
+    ``-flip_rad``, worst joint first, clipped into the limits."""
+    joints = _flippable(model)
+    if n == 0 or len(joints) == 0:
+        return jnp.broadcast_to(q_pred, (n,) + q_pred.shape)
+    _, J = residuals_and_jacobian(q_pred, ResidualArgs(model=model, cameras=rig, features=feats,
+                                                       fractions=fractions))
+    norms = jnp.sqrt(jnp.sum(J[:, joints] ** 2, axis=0))
+    order = jnp.asarray(joints)[jnp.argsort(norms)]
+    pick = np.arange(n) // 2 % len(joints)
+    sign = jnp.asarray(np.where(np.arange(n) % 2 == 0, 1.0, -1.0), q_pred.dtype)
+    starts = jnp.broadcast_to(q_pred, (n,) + q_pred.shape)
+    starts = starts.at[np.arange(n), order[pick]].add(sign * flip_rad)
+    return jax.vmap(lambda q: clip_q(model, q))(starts)
+
+
+def image_merit(model: Model, rig: tuple, feats: tuple, q, fractions, scale_px, rms_scale_px) -> Float[Array, ""]:
+    """A candidate pose's merit in (0, 1] from its image residuals, comparable across starts: the
+    robust RMS ``e_r = sqrt(sum w s^2 log(1 + (e/s)^2) / sum w)`` of the feature distances ``e``
+    at ``q`` with the front end's weights ``w`` and the Cauchy scale ``s``, as
+    ``1 / (1 + (e_r / rms_scale_px)^2)``. (The solves' own costs carry each start's reweighting.)"""
+    total, weight = 0.0, 0.0
+    for f, (e_link, e_tip) in zip(feats, feature_distances(model, rig, feats, q, fractions)):
+        for e, w, valid in ((e_link, f.line_weight, f.line_valid), (e_tip, f.tip_weight, f.tip_valid)):
+            w = jnp.where(valid, w, 0.0)
+            total = total + jnp.sum(w * scale_px ** 2 * jnp.log1p((e / scale_px) ** 2))
+            weight = weight + jnp.sum(w)
+    rms = jnp.sqrt(total / jnp.maximum(weight, 1e-12))   # Guard: no valid feature gives 0, not NaN
+    return 1.0 / (1.0 + (rms / rms_scale_px) ** 2)
+
+
+class _Candidates(eqx.Module):
+    """Every start's solve (batched :class:`_Solved`), its merit (-1: a padding slot or a failed
+    solve) and the features' value check."""
+
+    solved: _Solved
+    merit: Float[Array, " k"]
+    features_ok: Bool[Array, ""]
+
+
+def candidates(model: Model, rig: tuple, feats: tuple, ghk: GHKState, extras, extra_valid, build, fit_config,
+               numbers, passes: int, priors, n_flips: int, flip_rad) -> _Candidates:
+    """The prediction, its flips and the ``extras`` (where ``extra_valid``) solved in one vmapped call."""
+    fractions = fit_config.link_fractions
+    q_pred = ghk.x
+    starts = jnp.concatenate([q_pred[None], flip_starts(model, rig, feats, q_pred, n_flips, flip_rad, fractions),
+                              extras])
+    valid = jnp.concatenate([jnp.ones(1 + n_flips, bool), extra_valid])
+    solved = jax.vmap(lambda q0: solve_frame(model, rig, feats, q_pred, q0, build, fit_config, numbers, passes,
+                                             priors))(starts)
+    merit = jax.vmap(lambda q: image_merit(model, rig, feats, q, fractions, numbers.robust_scale_px,
+                                           numbers.rms_scale_px))(solved.q)
+    return _Candidates(solved=solved, merit=jnp.where(valid & solved.ok, merit, -1.0), features_ok=features_ok(feats))
+
+
+def _unpack(static: _Static, consts: tuple):
+    treedef, static_half = static.value
+    return eqx.combine(jax.tree_util.tree_unflatten(treedef, consts), static_half)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _candidates_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras, extra_valid):
+    (model, rig, build, fit_config, numbers, passes, _, _, priors, _), (n_flips, flip_rad) = _unpack(static, consts)
+    return candidates(model, rig, tuple(Features(*f) for f in feats), GHKState(*ghk), extras, extra_valid, build,
+                      fit_config, numbers, passes, priors, n_flips, flip_rad)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _commit_jit(static: _Static, consts: tuple, cands: _Candidates, index, ghk: tuple, q_last):
+    """The candidate ``index`` through :func:`finish_frame`, packed as :func:`_frame_jit` packs."""
+    (model, _, _, _, numbers, _, use_filter, hold, _, report_solve), _ = _unpack(static, consts)
+    solved = jax.tree_util.tree_map(lambda a: a[index], cands.solved)
+    out = finish_frame(model, GHKState(*ghk), q_last, solved, cands.features_ok, numbers, use_filter, hold,
+                       report_solve)
+    dtype = out.q_solved.dtype
+    scalars = jnp.stack([jnp.asarray(getattr(out, name), dtype) for name in SCALARS])
+    return (out.q_solved, out.q_filtered, scalars), (out.ghk.x, out.ghk.v, out.ghk.a)
+
+
+class HypothesisProgram:
+    """The multiple-start frame program of one tracker (its constants split once, like
+    :class:`~jaxhand.track._compiled.FrameProgram`). Each number of extra starts compiles once."""
+
+    def __init__(self, model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float):
+        hyp = config.hypotheses
+        parts = (step_constants(model, rig, config, theta, dt_s),
+                 (hyp.flips, jnp.asarray(float(np.radians(hyp.flip_deg)))))
+        consts, static = eqx.partition(parts, eqx.is_array)
+        leaves, treedef = jax.tree_util.tree_flatten(consts)
+        self._consts, self._static = tuple(leaves), _Static((treedef, static))
+        self.n_flips = hyp.flips
+
+    def candidates(self, feats: tuple, ghk: tuple, extras, extra_valid) -> _Candidates:
+        """Every start's solve and merit (device arrays)."""
+        return _candidates_jit(self._static, self._consts, feats, ghk, extras, extra_valid)
+
+    def commit(self, cands: _Candidates, index: int, ghk: tuple, q_last):
+        """``(q_solved, q_filtered, scalars), (x, v, a)`` of the chosen candidate."""
+        return _commit_jit(self._static, self._consts, cands, jnp.asarray(index), ghk, q_last)
+
+
+def choose(merit: np.ndarray, scores: np.ndarray | None = None) -> tuple[int, np.ndarray]:
+    """The winner's index and every candidate's total merit: the residual merit times the image
+    score (when there is one); a tie goes to the earlier start (the prediction first)."""
+    total = np.asarray(merit, float) * (1.0 if scores is None else np.asarray(scores, float))
+    total = np.where(np.asarray(merit) < 0, -1.0, total)   # padding slots and failed solves never win
+    return int(np.argmax(total)), total
+
+
+def runners_up(qs: np.ndarray, total: np.ndarray, winner: int, n: int, margin: float, min_rad: float,
+               angle: np.ndarray) -> np.ndarray:
+    """Up to ``n`` candidates the merit could not tell from the winner (at least ``margin`` of its
+    merit) that differ from it (and from each other) by more than ``min_rad`` in some joint angle,
+    best first: the starts carried to the next frame, (m, n_q)."""
+    kept: list[np.ndarray] = [qs[winner]]
+    if n == 0 or total[winner] <= 0:
+        return qs[:0]
+    for i in np.argsort(-total, kind="stable"):
+        if len(kept) > n or total[i] < margin * total[winner]:
+            break
+        if all(np.max(np.abs(qs[i] - k)[angle]) > min_rad for k in kept):
+            kept.append(qs[i])
+    return np.asarray(kept[1:]).reshape(-1, qs.shape[1])
+
+
+def recovery_starts(model: Model, q_good: np.ndarray, hyp: HypothesisConfig, frame: int) -> np.ndarray:
+    """``hyp.recover`` starts around the last good pose: Gaussian in every joint angle
+    (``recover_deg``) and length (``recover_mm``), the quaternion kept, drawn from
+    ``(hyp.seed, frame)`` and clipped into the limits."""
+    kinds = np.array(model.q_kinds)
+    sigma = np.where(kinds == "angle", np.radians(hyp.recover_deg), np.where(kinds == "length", hyp.recover_mm, 0.0))
+    rng = np.random.default_rng((hyp.seed, frame))
+    starts = q_good + sigma * rng.standard_normal((hyp.recover, model.n_q))
+    return np.clip(starts, np.asarray(model.q_lower), np.asarray(model.q_upper))
+
+
+def check_proposals(model: Model, proposals, frame: int) -> np.ndarray:
+    """A caller's starting poses as a (k, n_q) array clipped into the limits (k may be 0).
+
+    Raises:
+        InputError: not (k, n_q) numbers, or not finite.
+    """
+    try:
+        p = np.asarray(proposals, float)
+    except (TypeError, ValueError) as err:
+        raise InputError(f"proposals: frame {frame}: cannot read as numbers ({err})") from None
+    if p.ndim == 1 and p.shape[0] == model.n_q:
+        p = p[None]
+    if p.ndim != 2 or p.shape[1] != model.n_q:
+        raise InputError(f"proposals: frame {frame}: expected (k, {model.n_q}) starting poses for {model.name!r}, "
+                         f"got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise InputError(f"proposals: frame {frame}: a starting pose is not finite")
+    return np.clip(p, np.asarray(model.q_lower), np.asarray(model.q_upper))
+
+
+def extra_starts(model: Model, hyp: HypothesisConfig, q_pred: np.ndarray, q_solved: np.ndarray | None,
+                 carried: np.ndarray | None, proposals: np.ndarray | None, q_good: np.ndarray | None, frame: int
+                 ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """The host's extra starts of a frame, their validity and labels: the last solve, the carried
+    runners-up (padded to ``hyp.carry`` slots with the prediction, not valid, so the program's
+    shape does not change), the proposals and the recovery starts around ``q_good`` (None: the
+    frame before was not lost)."""
+    rows, valid, labels = [], [], []
+
+    def add(qs, label, ok=True):
+        for q in np.asarray(qs, float).reshape(-1, model.n_q):
+            rows.append(q)
+            valid.append(ok)
+            labels.append(label)
+
+    if hyp.last_solve:
+        add(q_pred if q_solved is None else q_solved, "last_solve", q_solved is not None)
+    if hyp.carry:
+        have = np.zeros((0, model.n_q)) if carried is None else carried[:hyp.carry]
+        add(have, "carried")
+        add(np.tile(q_pred, (hyp.carry - len(have), 1)), "carried", ok=False)
+    if proposals is not None:
+        add(proposals, "proposal")
+    if q_good is not None and hyp.recover:
+        add(recovery_starts(model, q_good, hyp, frame), "recover")
+    return np.asarray(rows).reshape(-1, model.n_q), np.asarray(valid, bool), tuple(labels)
