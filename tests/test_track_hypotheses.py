@@ -141,7 +141,8 @@ def test_the_image_score_decides_between_equal_residuals(hand, target_deg):
     frontend = _ScoredFrontEnd((f,), j, np.radians(target_deg))
     tracker = Tracker(m, rig, frontend, TrackConfig(reextract=0))
     _, rep = tracker.step(tracker.init(c), [None], 0, proposals=np.stack([a, b]))
-    assert frontend.calls == [3] and rep.hypothesis == "proposal"
+    # the three candidates, then the reported pose for the frame's confidence
+    assert frontend.calls == [3, 1] and rep.hypothesis == "proposal"
     assert np.degrees(rep.q_solved[j]) == pytest.approx(target_deg, abs=1e-6)
     np.testing.assert_allclose(np.delete(rep.q_solved, j), np.delete(truth, j), atol=1e-6)
 
