@@ -14,6 +14,7 @@ from ._compiled import reweight
 from ._config import (
     TRACK_CONFIG_VERSION,
     FilterConfig,
+    LandmarkConfig,
     LossConfig,
     PriorConfig,
     RobustConfig,
@@ -30,7 +31,8 @@ from ._sequence import accuracy_summary, track_sequence
 from ._tracker import StepReport, Tracker, TrackState
 
 __all__ = [
-    "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "TRACK_CONFIG_VERSION",
+    "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "LandmarkConfig",
+    "TRACK_CONFIG_VERSION",
     "config_to_dict", "config_from_dict", "config_to_toml", "save_track_config", "load_track_config",
     "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd",
     "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary",

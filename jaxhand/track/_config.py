@@ -27,7 +27,8 @@ from ..image import ImageConfig
 from ..solve import FitConfig, solver_named
 from ..solve.internal import check_config
 
-__all__ = ["TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "config_to_dict",
+__all__ = ["TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "LandmarkConfig",
+           "config_to_dict",
            "config_from_dict",
            "save_track_config", "load_track_config", "config_to_toml", "TRACK_CONFIG_VERSION"]
 
@@ -170,6 +171,43 @@ class PriorConfig:
         return bool(self.temporal_sigma_deg or self.temporal_sigma_mm)
 
 
+@dataclasses.dataclass(frozen=True)
+class LandmarkConfig:
+    """Landmarks in the tracker (``jaxhand track --landmarks``; :mod:`jaxhand.track._landmarks`).
+
+    Attributes:
+        fuse_weight: traced, unitless (0: off; whether it is on is static). Every frame's
+            landmarks enter its solve as 2-D residuals beside the edges, each point weighted by
+            ``fuse_weight`` times its confidence: a landmark pixel counts ``sqrt(weight)`` image
+            pixels. The frame's score stays on the image residuals alone.
+        restart: host. When a frame is lost, solve it again from its landmark pose (filter and
+            front end state started afresh there).
+        restart_px: host, px. Also count a frame as lost (for the restart only) when the
+            reported pose's 21 landmark points lie a median of more than this from the frame's
+            landmarks (0: only the tracker's own loss flag).
+        fit: host. How the landmark poses are fitted up front: ``"sequence"`` (the whole-sequence
+            fit with smoothness) or ``"frames"`` (frame by frame only, each from the previous).
+    """
+
+    fuse_weight: float | None = 0.0
+    restart: bool = True
+    restart_px: float | None = 0.0
+    fit: str = "sequence"
+
+    def __post_init__(self):
+        value = _off(self.fuse_weight)
+        _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+              and value >= 0, "landmarks.fuse_weight", f"expected a finite number >= 0 (0: off), got {value!r}")
+        object.__setattr__(self, "fuse_weight", float(value))
+        px = _off(self.restart_px)
+        _need(isinstance(px, (int, float)) and not isinstance(px, bool) and math.isfinite(px) and px >= 0,
+              "landmarks.restart_px", f"expected a finite number >= 0 (0: off), got {px!r}")
+        object.__setattr__(self, "restart_px", float(px))
+        _need(isinstance(self.restart, bool), "landmarks.restart", f"expected true or false, got {self.restart!r}")
+        _need(self.fit in ("sequence", "frames"), "landmarks.fit",
+              f"expected 'sequence' or 'frames', got {self.fit!r}")
+
+
 def _tracker_fit() -> FitConfig:
     # The tracker's solve: 20 iterations per frame and the geometric Jacobian (several times
     # cheaper on the CPU than autodiff, equal to rounding; benchmarks/README.md).
@@ -195,6 +233,8 @@ class TrackConfig:
             frame is solved again from there (for front ends whose ``reextracts`` is true).
         refresh_templates: host. After a frame that is not lost, let the front end refresh its
             state (templates, widths) at the solved pose.
+        landmarks: landmarks as start, restart and solve term (:class:`LandmarkConfig`; used
+            only when a run is given landmarks).
     """
 
     solver: str = "bounded"
@@ -206,11 +246,13 @@ class TrackConfig:
     prior: PriorConfig = dataclasses.field(default_factory=PriorConfig)
     reextract: int = 1
     refresh_templates: bool = True
+    landmarks: LandmarkConfig = dataclasses.field(default_factory=LandmarkConfig)
 
     def __post_init__(self):
         solver_named(self.solver)
         for name, kind in (("fit", FitConfig), ("image", ImageConfig), ("filter", FilterConfig),
-                           ("robust", RobustConfig), ("loss", LossConfig), ("prior", PriorConfig)):
+                           ("robust", RobustConfig), ("loss", LossConfig), ("prior", PriorConfig),
+                           ("landmarks", LandmarkConfig)):
             _need(isinstance(getattr(self, name), kind), name,
                   f"expected a {kind.__name__}, got {type(getattr(self, name)).__name__}")
         try:

@@ -35,6 +35,7 @@ from ..model import Model
 from ..viz import VideoWriter, draw_view, plot_joint_angles
 from ._config import TrackConfig, config_to_dict
 from ._frontend import AbstractFrontEnd, ImageFrontEnd
+from ._landmarks import LandmarkRun
 from ._tracker import StepReport, Tracker
 
 __all__ = ["track_sequence", "accuracy_summary"]
@@ -108,7 +109,7 @@ def accuracy_summary(model: Model, cameras: Camera | Sequence[Camera], q_est: Fl
 def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, frontend: AbstractFrontEnd | None = None,
                    *, config: TrackConfig | None = None, truth: np.ndarray | None = None, video: bool = True,
                    progress: bool | None = None, max_frames: int | None = None, overwrite: bool = False,
-                   resume: bool = False) -> dict:
+                   resume: bool = False, landmarks=None) -> dict:
     """Track ``model`` through ``sources`` (one :class:`~jaxhand.io.FrameSource` per camera, or
     any iterables of :class:`~jaxhand.io.Frame` with ``fps`` and ``len``).
 
@@ -119,8 +120,15 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
     tracker restarts at that frame's filtered pose with zero velocity (the summary's ``"resumed"``
     says so), and the video of the rest goes to ``overlay_from_NNNN.mp4``.
 
+    With ``landmarks`` (:mod:`jaxhand.track._landmarks`) the run starts from the first frame's
+    landmark pose when ``q0`` is None (a given ``q0`` wins), restarts from a lost frame's
+    landmark pose (``config.landmarks.restart``) and, with ``config.landmarks.fuse_weight``,
+    adds each frame's landmarks to its solve; ``summary.json`` reports the restarts and how the
+    poses sit on the landmarks (``"landmarks"``).
+
     Args:
-        q0: initial state (validated against the limits; ignored when resuming).
+        q0: initial state (validated against the limits; ignored when resuming); None: the
+            landmark pose of the first frame (needs ``landmarks``).
         out_dir: where ``angles.csv``, ``results.npz``, ``summary.json``, ``overlay.mp4`` and
             ``angles.png`` go (created if needed).
         frontend: the front end (default: an :class:`~jaxhand.ImageFrontEnd` with ``config.image``).
@@ -130,6 +138,8 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
         max_frames: stop after this many frames (>= 1).
         overwrite: replace an earlier run in ``out_dir`` (else it is an error to mix runs).
         resume: continue the interrupted run in ``out_dir``.
+        landmarks: a :class:`~jaxhand.landmarks.LandmarkSequence` of the first camera (fitted
+            here, ``config.landmarks.fit``) or its fitted :class:`~jaxhand.landmarks.LandmarkPoses`.
 
     Returns:
         The summary written to ``summary.json``.
@@ -155,6 +165,11 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
     if isinstance(frontend, ImageFrontEnd):   # the report records the settings the run used
         config = dataclasses.replace(config, image=frontend.config)
     tracker = Tracker(model, cameras, frontend, config, dt_s=1.0 / fps)
+    lm = None if landmarks is None else LandmarkRun(model, cameras[0], landmarks, config.landmarks, n)
+    if q0 is None and not resume:
+        if lm is None:
+            raise InputError("q0: give an initial pose (or landmarks to start from)")
+        q0 = lm.first_pose(0)
     if not resume:
         state = tracker.init(q0)
         _check_view(model, cameras, state.q_last)
@@ -171,7 +186,7 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
                        "state": f"re-initialised at the filtered pose of frame {writer.last_frame} with zero "
                                 "velocity (the filter's velocity and the front end's templates start afresh)"}
         return _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, truth, video, progress,
-                    q0, resumed)
+                    q0, resumed, lm)
 
 
 def _check_view(model: Model, cameras, q) -> None:
@@ -276,7 +291,7 @@ class _Timings:
 
 
 def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, truth, video, progress, q0,
-         resumed) -> dict:
+         resumed, lm) -> dict:
     vw = None
     start = 0 if resumed is None else resumed["after_frame"] + 1
     timings = _Timings()
@@ -301,13 +316,20 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
                 bar.update(1)
                 continue
             images = [f.image for f in frames]
-            state, rep = tracker.step(state, images, frame, frames[0].time_s)
+            if lm is None:
+                state, rep = tracker.step(state, images, frame, frames[0].time_s)
+                marks = {}
+            else:
+                state, rep, restarted = lm.step(tracker, state, images, frame, frames[0].time_s)
+                marks = {"restarted": restarted}
             count += 1
             timings.add(rep.timings_s)
             writer.write(rep.frame, rep.time_s, rep.q_filtered, rep.confidence, rep.lost, q_pred=rep.q_pred,
-                         q_solved=rep.q_solved, cost=rep.cost, rms_px=rep.rms_px, iterations=rep.iterations)
+                         q_solved=rep.q_solved, cost=rep.cost, rms_px=rep.rms_px, iterations=rep.iterations, **marks)
             if video:
                 tile = _overlay(model, cameras, images, rep)
+                if lm is not None:
+                    lm.draw(tile, rep.frame)
                 if vw is None:
                     vw = VideoWriter(out / video_name, fps, tile.shape[1::-1])
                 vw.write(tile)
@@ -329,6 +351,9 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
     elapsed = time.perf_counter() - started
     summary = _summary(model, cameras, tracker, state, writer, out, fps, config, truth, q0, timings, count,
                        elapsed, resumed)
+    if lm is not None:
+        cols = writer.arrays()
+        summary["landmarks"] = lm.summary(cols["frame"], cols["q"]) if len(writer) else lm.summary([], [])
     if stop is not None:
         summary.update({"interrupted": True, "interrupted_at_frame": int(frame),
                         "stopped_by": "interrupt" if isinstance(stop, KeyboardInterrupt) else str(stop)})

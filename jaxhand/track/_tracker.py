@@ -144,15 +144,16 @@ class Tracker:
         q0 = validate_q(self.model, q0, name="initial pose", within_limits=True)
         return TrackState(ghk=ghk_init(jnp.asarray(q0)), frontend_state=frontend_state, q_last=q0)
 
-    def step(self, state: TrackState, images: Sequence[np.ndarray | None], frame: int = 0, time_s: float = 0.0
-             ) -> tuple[TrackState, StepReport]:
+    def step(self, state: TrackState, images: Sequence[np.ndarray | None], frame: int = 0, time_s: float = 0.0,
+             extra: tuple = ()) -> tuple[TrackState, StepReport]:
         """Process one frame (one image per camera; ``frame`` is passed to the front end).
 
         After the front end, the compiled frame program runs and its results come back in one
         transfer; the timings ``features`` (front end), ``solve`` (the program) and ``filter``
         (the report on the host) split the frame. With ``config.reextract`` (and a front end
         whose ``reextracts`` is true) the front end and the program run again from the solved
-        pose; ``features`` and ``solve`` then add up every round.
+        pose; ``features`` and ``solve`` then add up every round. ``extra``: this frame's extra
+        solve terms (``frame_step``'s ``extra``, e.g. landmarks), outside the frame's score.
         """
         if len(images) != len(self.cameras):
             raise InputError(f"expected one image per camera ({len(self.cameras)}), got {len(images)}")
@@ -166,7 +167,7 @@ class Tracker:
             fe_state = extracted.state
             t1 = time.perf_counter()
             (q_meas, filtered, scalars), ghk_next = self._program(self._feature_arrays(extracted.features), ghk,
-                                                                  state.q_last, q_start)
+                                                                  state.q_last, q_start, extra)
             q_pred_host, q_meas, filtered, scalars = jax.device_get((q_pred, q_meas, filtered, scalars))  # one fetch
             out = dict(zip(SCALARS, scalars.tolist()))
             t2 = time.perf_counter()
