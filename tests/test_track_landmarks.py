@@ -22,7 +22,15 @@ from jaxhand.landmarks import (
     save_landmarks_csv,
 )
 from jaxhand.render import make_preset, write_sequence
-from jaxhand.track import LandmarkConfig, TrackConfig, Tracker, track_sequence
+from jaxhand.track import (
+    LandmarkConfig,
+    TrackConfig,
+    Tracker,
+    config_from_dict,
+    load_track_config,
+    save_track_config,
+    track_sequence,
+)
 
 FRAMES = 10
 
@@ -197,3 +205,16 @@ def test_landmarks_of_another_image_or_hand_are_refused(seq, lm_file):
     other = "right" if seq.model.handedness == "left" else "left"
     with pytest.raises(jh.InputError, match=f"the landmarks are of a {other} hand"):
         fit_landmark_poses(seq.model, seq.cameras[0], dataclasses.replace(ls, handedness=other))
+
+
+def test_landmark_config_round_trips_and_names_bad_values(tmp_path):
+    c = TrackConfig(landmarks=LandmarkConfig(fuse_weight=1 / 3, restart=False, restart_px=None, fit="frames"))
+    assert c.landmarks.restart_px == 0.0 and TrackConfig().landmarks == LandmarkConfig()
+    save_track_config(c, tmp_path / "c.toml")
+    assert load_track_config(tmp_path / "c.toml") == c and load_track_config(tmp_path / "c.toml") != TrackConfig()
+    for data, message in (({"fit": "batch"}, r"landmarks\.fit: expected 'sequence' or 'frames', got 'batch'"),
+                          ({"fuse_weight": float("nan")}, r"landmarks\.fuse_weight: expected a finite number >= 0"),
+                          ({"restart": 1}, r"landmarks\.restart: expected true or false"),
+                          ({"restart_pix": 3.0}, r"landmarks\.restart_pix: unknown key; did you mean 'restart_px'")):
+        with pytest.raises(jh.InputError, match=message):
+            config_from_dict({"landmarks": data})
