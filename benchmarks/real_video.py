@@ -9,7 +9,9 @@ fit shared by the runs). Runs, each from frame 0's landmark pose:
 - ``a``: no restarts;
 - ``b``: ``--landmarks`` with restarts on the tracker's loss flag;
 - ``b15``: also restart where the pose's landmark points lie a median > 15 px off (``--restart-px 15``);
-- ``c<W>``: ``b`` + ``--fuse-landmarks W``.
+- ``c<W>``: ``b`` + ``--fuse-landmarks W``;
+- ``c<W>nf``: ``c<W>`` with ``--no-filter`` (the raw solve reported and predicted from), for the
+  first weight.
 
 On the fingers: every one of the 21 projected model landmark points (joint centres, fingertips
 on the skin, the wrist) within 15 px of MediaPipe's (``jaxhand.landmarks.landmark_agreement``).
@@ -21,6 +23,7 @@ Writes ``benchmarks/results/real_video.json``; the runs' folders (overlay videos
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from pathlib import Path
 
@@ -28,10 +31,10 @@ import numpy as np
 from _common import REPO, RESULTS, environment, format_table, load_average, write_json
 
 from jaxhand.io import open_frames
-from jaxhand.landmarks import LandmarkPoses, camera_from_fov, fit_landmark_sequence, load_landmarks
+from jaxhand.landmarks import LandmarkPoses, camera_from_fov, fit_landmark_sequence, landmark_agreement, load_landmarks
 from jaxhand.landmarks import projected_landmarks as project
 from jaxhand.model import get_model
-from jaxhand.track import LandmarkConfig, TrackConfig, track_sequence
+from jaxhand.track import FilterConfig, LandmarkConfig, TrackConfig, track_sequence
 
 VIDEO = REPO / "data" / "real" / "human_hand_video.mp4"
 LANDMARKS = REPO / "data" / "real" / "human_hand_video.mediapipe.json"
@@ -52,9 +55,13 @@ def calibrated_poses(frames: int) -> tuple:
     return fit.model, camera, poses
 
 
-def runs(weights) -> dict[str, LandmarkConfig]:
+def runs(weights) -> dict[str, TrackConfig]:
     out = {"a": LandmarkConfig(restart=False), "b": LandmarkConfig(), "b15": LandmarkConfig(restart_px=15.0)}
     out.update({f"c{w:g}": LandmarkConfig(fuse_weight=w) for w in weights})
+    out = {k: TrackConfig(landmarks=v) for k, v in out.items()}
+    if weights:
+        out[f"c{weights[0]:g}nf"] = TrackConfig(landmarks=LandmarkConfig(fuse_weight=weights[0]),
+                                                 filter=FilterConfig(enabled=False))
     return out
 
 
@@ -64,6 +71,7 @@ def main() -> None:
     ap.add_argument("--weights", default="1,10", help="--fuse-landmarks weights of the c runs")
     ap.add_argument("--runs", default=None, help="comma-separated subset of a,b,b15,c<W>")
     ap.add_argument("--out", default="/tmp/jaxhand_real_video", help="folder for the runs' outputs")
+    ap.add_argument("--merge", action="store_true", help="add the runs to those of an earlier results file")
     args = ap.parse_args()
     weights = [float(w) for w in args.weights.split(",") if w]
     todo = runs(weights)
@@ -72,33 +80,39 @@ def main() -> None:
     load0 = load_average()
     model, camera, poses = calibrated_poses(args.frames)
     print(f"calibration + landmark poses: {poses.fit_s:.0f} s, median {poses.median_px:.2f} px")
+    path = RESULTS / ("real_video.json" if args.frames == 621 else f"real_video_{args.frames}.json")
+    earlier = json.loads(path.read_text())["runs"] if args.merge and path.exists() else {}
     results = {"frames": args.frames, "model": "hand27_right calibrated to the video's landmarks",
                "camera": "pinhole, 60 deg horizontal field of view", "on_fingers_rule":
                "all 21 projected model landmark points within 15 px of MediaPipe's",
-               "landmark_fit": {"s": poses.fit_s, "median_px": poses.median_px}, "runs": {}}
+               "landmark_fit": {"s": poses.fit_s, "median_px": poses.median_px}, "runs": earlier}
+    alone = landmark_agreement(model, camera, poses, poses.frames, poses.q)
+    results["landmark_fit"]["agreement"] = alone
+    print(f"the landmark poses alone: on the fingers in {alone['frames_on_fingers']}/{alone['frames_compared']} frames")
     rows = []
-    for name, lm in todo.items():
-        config = TrackConfig(landmarks=lm)
+    for name, config in todo.items():
+        lm = config.landmarks
         sources = open_frames([VIDEO], fps=30.0, sizes=[camera.size])
         s = track_sequence(model, (camera,), sources, None, Path(args.out) / name, config=config,
                            landmarks=poses, max_frames=args.frames, overwrite=True)
         ag = s["landmarks"]["agreement"]
         results["runs"][name] = {"config": {"restart": lm.restart, "restart_px": lm.restart_px,
-                                            "fuse_weight": lm.fuse_weight},
+                                            "fuse_weight": lm.fuse_weight, "filter": config.filter.enabled},
+                                 "load_average": {"start": load0, "end": load_average()},
                                  "agreement": ag, "restarts": s["landmarks"]["restarts"],
                                  "restart_frames": s["landmarks"]["restart_frames"], "lost_frames": s["lost_frames"],
                                  "frames_per_second_steady": s["frames_per_second_steady"],
                                  "frames_per_second_end_to_end": s["frames_per_second_end_to_end"],
                                  "median_ms_per_stage": s["median_ms_per_stage"]}
-        rows.append([name, lm.restart, f"{lm.restart_px:g}", f"{lm.fuse_weight:g}",
+        rows.append([name, lm.restart, f"{lm.restart_px:g}", f"{lm.fuse_weight:g}", config.filter.enabled,
                      f"{ag['frames_on_fingers']}/{ag['frames_compared']}", f"{ag['share_on_fingers']:.3f}",
                      f"{ag['median_px']:.1f}", f"{ag['share_points_within']:.3f}", s["landmarks"]["restarts"],
                      s["lost_frames"], f"{s['frames_per_second_steady']:.2f}"])
-        print(format_table(rows, ["run", "restart", "restart_px", "fuse", "on fingers", "share", "median px",
+        print(format_table(rows, ["run", "restart", "restart_px", "fuse", "filter", "on fingers", "share", "median px",
                                   "points <= 15 px", "restarts", "lost", "frames/s"]))
         results["environment"] = environment()
         results["load_average"] = {"start": load0, "end": load_average()}
-        write_json(results, RESULTS / ("real_video.json" if args.frames == 621 else f"real_video_{args.frames}.json"))
+        write_json(results, path)
 
 
 if __name__ == "__main__":
