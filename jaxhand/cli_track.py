@@ -62,6 +62,17 @@ def register(sub) -> None:
                                    "truth.json or its folder (data/mujoco/README.md; default: the input folder's)")
     p.add_argument("--max-frames", type=int, metavar="N", help="stop after N frames (N >= 1)")
     p.add_argument("--no-video", action="store_true", help="skip the overlay video")
+    p.add_argument("--landmarks", metavar="FILE",
+                   help="21-point landmarks of the first camera's input (MediaPipe JSON, or jaxhand's CSV/JSON: "
+                        "jaxhand.landmarks): every frame's landmark pose is fitted first; the run starts from the "
+                        "first frame's (--init, if given, wins) and restarts from a lost frame's")
+    p.add_argument("--fuse-landmarks", type=float, metavar="WEIGHT",
+                   help="add every frame's landmarks to its solve beside the edges, each point weighted by WEIGHT "
+                        f"times its confidence (needs --landmarks; default: {defaults.landmarks.fuse_weight:g}, off)")
+    p.add_argument("--no-restart", action="store_true", help="with --landmarks: never restart from the landmarks")
+    p.add_argument("--restart-px", type=float, metavar="PX",
+                   help="with --landmarks: also restart where the reported pose's landmark points lie a median of "
+                        f"more than PX from the frame's landmarks (default: {defaults.landmarks.restart_px:g}, never)")
     p.set_defaults(func=_track)
     d = sub.add_parser("demo", help="render a built-in sequence, track it, write and print the report",
                        description="Render a synthetic sequence (PRESET) into OUT/sequence, track it with the default "
@@ -165,7 +176,9 @@ def load_truth_arg(path: str | Path, model) -> np.ndarray:
 
 _FLAG_FIELDS = (("solver", "--solver", None, "solver"), ("steps", "--steps", "fit", "max_steps"),
                 ("theta", "--theta", "filter", "theta"), ("theta_rate", "--theta-rate", "filter", "theta_rate_hz"),
-                ("method", "--method", "image", "method"), ("width_gain", "--width-gain", "image", "width_gain"))
+                ("method", "--method", "image", "method"), ("width_gain", "--width-gain", "image", "width_gain"),
+                ("fuse_landmarks", "--fuse-landmarks", "landmarks", "fuse_weight"),
+                ("restart_px", "--restart-px", "landmarks", "restart_px"))
 
 
 def _flag_error(flag: str, key: str, err: InputError) -> InputError:
@@ -197,6 +210,8 @@ def track_config_from_args(args) -> TrackConfig:
             (changes.setdefault(section, {}) if section else changes)[key] = value
     if args.no_filter:
         changes.setdefault("filter", {})["enabled"] = False
+    if args.no_restart:
+        changes.setdefault("landmarks", {})["restart"] = False
     if args.reacquire is not None:
         try:
             angles = [float(a) for a in args.reacquire.split(",") if a.strip()]
@@ -222,16 +237,25 @@ def _track(args) -> int:
         raise InputError(f"--max-frames: expected a count >= 1, got {args.max_frames}")
     if args.resume and args.overwrite:
         raise InputError("--resume and --overwrite exclude each other: choose one")
+    if (args.fuse_landmarks is not None or args.no_restart or args.restart_px is not None) and not args.landmarks:
+        raise InputError("--fuse-landmarks, --no-restart and --restart-px act on landmarks: give --landmarks FILE")
     out = out_dir(args.out)
     model, cameras, sources, truth, q_first = _resolve(args)
-    if args.init is None and q_first is not None:
+    landmarks = None
+    if args.landmarks:
+        from .landmarks import load_landmarks
+
+        landmarks = load_landmarks(args.landmarks)
+    if args.init is None and landmarks is not None:
+        q0 = None   # the first frame's landmark pose
+    elif args.init is None and q_first is not None:
         q0 = np.asarray(q_first)
     else:
         q0 = parse_pose(model, args.init)
     try:
         summary = track_sequence(model, cameras, sources, q0, out, config=config, truth=truth,
                                  video=not args.no_video, max_frames=args.max_frames, overwrite=args.overwrite,
-                                 resume=args.resume)
+                                 resume=args.resume, landmarks=landmarks)
     except OutputExistsError as err:
         raise InputError(f"--out {err} (--resume continues an interrupted run, --overwrite replaces it)") from None
     if args.resume and "resumed" in summary:
@@ -247,6 +271,12 @@ def print_summary(summary: dict, out: Path, file=None) -> None:
           f"({summary.get('frames_per_second_end_to_end', 0):.1f} frames/s end to end, "
           f"{summary.get('frames_per_second_steady', 0):.1f} frames/s steady); "
           f"lost frames: {summary.get('lost_frames', 0)}", file=file)
+    if "landmarks" in summary:
+        lm = summary["landmarks"]
+        on = lm["agreement"]
+        print(f"landmarks: {lm['restarts']} restart(s); on the fingers (all 21 points within {on['radius_px']:g} px) "
+              f"in {on.get('frames_on_fingers', 0)} of {on['frames_compared']} frames, median "
+              f"{on.get('median_px', float('nan')):.1f} px", file=file)
     if "median_ms_per_stage" in summary:
         print("median ms per stage: " + ", ".join(f"{k} {v:.2f}" for k, v in summary["median_ms_per_stage"].items()),
               file=file)

@@ -1,6 +1,7 @@
 """Hand landmarks (the 21 points of MediaPipe and OpenPose): the point convention on jaxhand's
 models, 2-D/3-D keypoint residuals in the residual stack, single, batched and whole-sequence
-fits, hand calibration, and landmark files."""
+fits, hand calibration, landmark files, and per-frame landmark poses and solve terms for the
+tracker."""
 
 from ._convention import BUILTIN_HANDEDNESS, POINT_NAMES, LandmarkMap, landmark_map, landmark_positions
 from ._fit import LANDMARK_SOLVERS, BatchConfig, fit_landmarks, fit_landmarks_batch
@@ -15,6 +16,8 @@ from ._pipeline import (
     save_calibrated_model,
     track_landmarks,
 )
+from ._poses import LANDMARK_FITS, MIN_POINTS, ON_FINGERS_PX, LandmarkPoses, fit_landmark_poses, landmark_agreement
+from ._prior import LandmarkPrior, LandmarkTerm, landmark_term
 from ._residuals import (
     LandmarkArgs,
     Landmarks,
@@ -36,4 +39,6 @@ __all__ = ["POINT_NAMES", "BUILTIN_HANDEDNESS", "LandmarkMap", "landmark_map", "
            "LandmarkSequence", "LandmarkFileError", "load_landmarks", "save_landmarks_csv", "mirror_x",
            "SequenceConfig", "SequenceResult", "fit_sequence", "HandShape", "hand_shape", "apply_shape",
            "SequenceFit", "fit_landmark_sequence", "track_landmarks", "initial_starts", "calibrate_landmarks",
-           "save_calibrated_model", "projected_landmarks", "camera_from_fov"]
+           "save_calibrated_model", "projected_landmarks", "camera_from_fov", "LandmarkPoses", "fit_landmark_poses",
+           "LANDMARK_FITS", "MIN_POINTS", "ON_FINGERS_PX", "landmark_agreement", "LandmarkTerm", "LandmarkPrior",
+           "landmark_term"]

@@ -161,7 +161,7 @@ class SequenceFit:
         q: (T, n_q) fitted states; q_init: (T, n_q) the frame-by-frame fits it started from.
         model: the model with the fitted shape (the input model when no shape was fitted).
         theta: (p,) the shape (empty without); shape: its :class:`HandShape` or None.
-        result: the :class:`SequenceResult` of the whole-sequence solve.
+        result: the :class:`SequenceResult` of the whole-sequence solve (None without it).
         start_costs: (starts,) frame 0's cost from each start; best_start: the chosen one.
         timings_s: seconds per stage (first frame, frame by frame, sequence), compile included.
     """
@@ -171,7 +171,7 @@ class SequenceFit:
     model: Model
     theta: np.ndarray
     shape: HandShape | None
-    result: SequenceResult
+    result: SequenceResult | None
     start_costs: np.ndarray
     best_start: int
     timings_s: dict
@@ -179,7 +179,7 @@ class SequenceFit:
 
 def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape: HandShape | None | str = "auto",
                           config: SequenceConfig | None = None, batch_config: BatchConfig | None = None,
-                          q0=None) -> SequenceFit:
+                          q0=None, sequence: bool = True) -> SequenceFit:
     """Fit a whole landmark sequence (see the module docstring).
 
     Args:
@@ -187,6 +187,8 @@ def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape:
         shape: a :class:`HandShape`, None (keep the model's shape) or "auto" (every phalanx
             scaled and the palm placement, :func:`~jaxhand.landmarks.hand_shape`).
         q0: optional (n_q,) start of frame 0 instead of the automatic starts.
+        sequence: run step 3, the whole-sequence solve (False: the frame-by-frame fits are the
+            result, ``shape`` is not fitted and ``result`` is None).
     """
     rig = as_rig(cameras)
     if landmarks.px.ndim != 4:
@@ -216,6 +218,9 @@ def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape:
     q_init, _, _ = track_landmarks(model, rig, landmarks, q_first, config=batch_config)
     q_init[:first] = q_first
     times["frame_by_frame_s"] = time.perf_counter() - t
+    if not sequence:
+        return SequenceFit(q=q_init, q_init=q_init, model=model, theta=np.zeros(0), shape=None, result=None,
+                           start_costs=costs, best_start=best, timings_s=times)
     t = time.perf_counter()
     res = fit_sequence(model, rig, landmarks, q_init, shape=shape, config=config)
     jax.block_until_ready(res)

@@ -1,7 +1,7 @@
 """Tracking: a model through frames, one front end, one compiled solve-and-filter step per frame.
 
 - :class:`TrackConfig` (with :class:`FilterConfig`, :class:`RobustConfig`, :class:`LossConfig`, :class:`PriorConfig`,
-  :class:`HypothesisConfig`, a :class:`~jaxhand.FitConfig` and an :class:`~jaxhand.ImageConfig`): every setting of a
+  :class:`HypothesisConfig`, :class:`LandmarkConfig`, a :class:`~jaxhand.FitConfig` and an :class:`~jaxhand.ImageConfig`): every setting of a
   run, saved to and loaded from TOML (:func:`save_track_config`, :func:`load_track_config`);
 - :class:`AbstractFrontEnd` and its final implementations :class:`ImageFrontEnd` (the image
   analysis) and :class:`ExactFrontEnd` (exact features of a known truth, for experiments);
@@ -16,23 +16,22 @@ from ._config import (
     TRACK_CONFIG_VERSION,
     FilterConfig,
     HypothesisConfig,
+    LandmarkConfig,
     LossConfig,
     PriorConfig,
     RobustConfig,
     TrackConfig,
     config_from_dict,
     config_to_dict,
-    config_to_toml,
-    load_track_config,
-    save_track_config,
 )
+from ._config_toml import config_to_toml, load_track_config, save_track_config
 from ._frontend import AbstractFrontEnd, ExactFrontEnd, FrontEndDiagnostics, FrontEndResult, ImageFrontEnd
 from ._score import confidence_of, frame_score, judge_frame
 from ._sequence import accuracy_summary, frame_tip_error_px, loss_flag_quality, track_sequence
 from ._tracker import StepReport, Tracker, TrackState
 
 __all__ = [
-    "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig",
+    "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig", "LandmarkConfig",
     "TRACK_CONFIG_VERSION",
     "config_to_dict", "config_from_dict", "config_to_toml", "save_track_config", "load_track_config",
     "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd",

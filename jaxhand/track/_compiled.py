@@ -189,14 +189,17 @@ class _Solved(eqx.Module):
 
 
 def solve_frame(model: Model, rig: tuple, feats: tuple, q_pred, q_start, build, fit_config, numbers: _StepNumbers,
-                passes: int, priors: _Priors | None = None) -> _Solved:
+                passes: int, priors: _Priors | None = None, terms: tuple = ()) -> _Solved:
     """The robust solve of one frame from ``q_start`` with the ``priors`` (the temporal one
-    around the prediction ``q_pred``), its image cost and residual RMS (px) and the share of
-    valid feature slots: what :func:`frame_step` runs once, and the hypotheses once per start."""
+    around the prediction ``q_pred``) and the frame's extra solve ``terms`` (``term.bind(model,
+    rig)`` gives a prior, e.g. :class:`~jaxhand.landmarks.LandmarkTerm`), its image cost and
+    residual RMS (px) and the share of valid feature slots: what :func:`frame_step` runs once,
+    and the hypotheses once per start."""
     fractions = fit_config.link_fractions
     # the information of the front end's own weights: the gate would shrink it wherever the
     # prediction is off, and so hold the solve back exactly where it has to move
     frame_priors = () if priors is None else priors.at(model, rig, feats, q_pred, q_start, fractions)
+    frame_priors = frame_priors + tuple(term.bind(model, rig) for term in terms)
     result = robust_solve(model, rig, feats, q_start, build, fit_config, numbers.robust_scale_px, passes,
                           numbers.gate_scale_px, frame_priors)
     ok = jnp.all(jnp.isfinite(result.q)) & jnp.isfinite(result.cost)
@@ -244,13 +247,13 @@ def finish_frame(model: Model, ghk: GHKState, q_last, solved: _Solved, checks_ok
 
 def frame_step(model: Model, rig: tuple, feats: tuple, ghk: GHKState, q_last, q_start, build, fit_config,
                numbers: _StepNumbers, passes: int, use_filter: bool, hold: bool, priors: _Priors | None = None,
-               report_solve: bool = False) -> _StepOut:
+               report_solve: bool = False, terms: tuple = ()) -> _StepOut:
     """One frame after feature extraction: the robust solve from ``q_start`` (the prediction
     ``ghk.x``, or an earlier solve of this frame that the features were searched around) with
     the ``priors`` (the temporal one around ``ghk.x``; :func:`solve_frame`), the score and loss
     flag (of the image residuals alone), the g-h-k update and prediction (:func:`finish_frame`),
-    and the features' value check."""
-    solved = solve_frame(model, rig, feats, ghk.x, q_start, build, fit_config, numbers, passes, priors)
+    and the features' value check. ``terms``: the frame's extra solve terms (:func:`solve_frame`)."""
+    solved = solve_frame(model, rig, feats, ghk.x, q_start, build, fit_config, numbers, passes, priors, terms)
     return finish_frame(model, ghk, q_last, solved, features_ok(feats), numbers, use_filter, hold, report_solve)
 
 
@@ -273,7 +276,7 @@ class _Static:
 
 
 @functools.partial(jax.jit, static_argnums=0)
-def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last, q_start):
+def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last, q_start, terms: tuple = ()):
     """:func:`frame_step` with flat arguments and results: ``consts`` and ``static`` are the
     leaves and the (tree, static half) of the constant arguments; ``feats`` one tuple of
     :data:`FEATURE_FIELDS` per camera; ``ghk`` the filter's (x, v, a). Returns
@@ -283,7 +286,7 @@ def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last,
     parts = eqx.combine(jax.tree_util.tree_unflatten(treedef, consts), static_half)
     model, rig, build, fit_config, numbers, passes, use_filter, hold, priors, report_solve = parts
     out = frame_step(model, rig, tuple(Features(*f) for f in feats), GHKState(*ghk), q_last, q_start, build,
-                     fit_config, numbers, passes, use_filter, hold, priors, report_solve)
+                     fit_config, numbers, passes, use_filter, hold, priors, report_solve, terms)
     dtype = out.q_solved.dtype
     scalars = jnp.stack([jnp.asarray(getattr(out, name), dtype) for name in SCALARS])
     return (out.q_solved, out.q_filtered, scalars), (out.ghk.x, out.ghk.v, out.ghk.a)
@@ -316,6 +319,6 @@ class FrameProgram:
         leaves, treedef = jax.tree_util.tree_flatten(consts)
         self._consts, self._static = tuple(leaves), _Static((treedef, static))
 
-    def __call__(self, feats: tuple, ghk: tuple, q_last, q_start):
+    def __call__(self, feats: tuple, ghk: tuple, q_last, q_start, terms: tuple = ()):
         """``(q_solved, q_filtered, scalars), (x, v, a)`` of one frame (see :func:`_frame_jit`)."""
-        return _frame_jit(self._static, self._consts, feats, ghk, q_last, q_start)
+        return _frame_jit(self._static, self._consts, feats, ghk, q_last, q_start, terms)

@@ -5,9 +5,9 @@ in :attr:`TrackConfig.fit` (a :class:`~jaxhand.FitConfig`), the image front end'
 :attr:`TrackConfig.image`. Each field's docstring gives its unit and whether it is *static*
 (part of the compiled frame program: a new value compiles a new one) or *traced* (passed as an
 array: a new value reuses it); *host* fields never enter compiled code. Values are checked once,
-when the tree is built. :func:`config_to_dict` / :func:`config_from_dict` and
-:func:`save_track_config` / :func:`load_track_config` (TOML) reproduce a tree exactly; unknown
-keys are errors with a "did you mean" hint.
+when the tree is built. :func:`config_to_dict` / :func:`config_from_dict` (and the TOML files of
+:mod:`jaxhand.track._config_toml`) reproduce a tree exactly; unknown keys are errors with a
+"did you mean" hint.
 """
 
 from __future__ import annotations
@@ -16,9 +16,6 @@ import dataclasses
 import difflib
 import json
 import math
-import tomllib
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -28,9 +25,7 @@ from ..solve import FitConfig, solver_named
 from ..solve.internal import check_config
 
 __all__ = ["TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig",
-           "config_to_dict",
-           "config_from_dict",
-           "save_track_config", "load_track_config", "config_to_toml", "TRACK_CONFIG_VERSION"]
+           "LandmarkConfig", "config_to_dict", "config_from_dict", "TRACK_CONFIG_VERSION"]
 
 #: The ``format_version`` written into (and required of) saved tracking configs.
 TRACK_CONFIG_VERSION = 1
@@ -243,6 +238,48 @@ class HypothesisConfig:
         return bool(self.flips or self.last_solve or self.carry or self.recover)
 
 
+@dataclasses.dataclass(frozen=True)
+class LandmarkConfig:
+    """Landmarks in the tracker (``jaxhand track --landmarks``; :mod:`jaxhand.track._landmarks`).
+
+    Attributes:
+        fuse_weight: traced, unitless (0: off; whether it is on is static). Every frame's
+            landmarks enter its solve as 2-D residuals beside the edges, each point weighted by
+            ``fuse_weight`` times its confidence: a landmark pixel counts ``sqrt(weight)`` image
+            pixels. The frame's score stays on the image residuals alone.
+        restart: host. When a frame is lost, solve it again from its landmark pose (filter and
+            front end state started afresh there).
+        restart_px: host, px. Also count a frame as lost (for the restart only) when the
+            reported pose's 21 landmark points lie a median of more than this from the frame's
+            landmarks (0: only the tracker's own loss flag).
+        fit: host. How the landmark poses are fitted up front: ``"sequence"`` (the whole-sequence
+            fit with smoothness) or ``"frames"`` (frame by frame only, each from the previous).
+        propose: host. The frame's landmark pose joins its starts as a hypothesis
+            (:attr:`TrackConfig.hypotheses`; the best start by residual and image score wins).
+    """
+
+    fuse_weight: float | None = 0.0
+    restart: bool = True
+    restart_px: float | None = 0.0
+    fit: str = "sequence"
+    propose: bool = True
+
+    def __post_init__(self):
+        value = _off(self.fuse_weight)
+        _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+              and value >= 0, "landmarks.fuse_weight", f"expected a finite number >= 0 (0: off), got {value!r}")
+        object.__setattr__(self, "fuse_weight", float(value))
+        px = _off(self.restart_px)
+        _need(isinstance(px, (int, float)) and not isinstance(px, bool) and math.isfinite(px) and px >= 0,
+              "landmarks.restart_px", f"expected a finite number >= 0 (0: off), got {px!r}")
+        object.__setattr__(self, "restart_px", float(px))
+        for name in ("restart", "propose"):
+            _need(isinstance(getattr(self, name), bool), f"landmarks.{name}",
+                  f"expected true or false, got {getattr(self, name)!r}")
+        _need(self.fit in ("sequence", "frames"), "landmarks.fit",
+              f"expected 'sequence' or 'frames', got {self.fit!r}")
+
+
 def _tracker_fit() -> FitConfig:
     # The tracker's solve: 20 iterations per frame and the geometric Jacobian (several times
     # cheaper on the CPU than autodiff, equal to rounding; benchmarks/README.md).
@@ -270,6 +307,8 @@ class TrackConfig:
             frame is solved again from there (for front ends whose ``reextracts`` is true).
         refresh_templates: host. After a frame that is not lost, let the front end refresh its
             state (templates, widths) at the solved pose.
+        landmarks: landmarks as start, restart and solve term (:class:`LandmarkConfig`; used
+            only when a run is given landmarks).
     """
 
     solver: str = "bounded"
@@ -282,12 +321,13 @@ class TrackConfig:
     hypotheses: HypothesisConfig = dataclasses.field(default_factory=HypothesisConfig)
     reextract: int = 1
     refresh_templates: bool = True
+    landmarks: LandmarkConfig = dataclasses.field(default_factory=LandmarkConfig)
 
     def __post_init__(self):
         solver_named(self.solver)
         for name, kind in (("fit", FitConfig), ("image", ImageConfig), ("filter", FilterConfig),
                            ("robust", RobustConfig), ("loss", LossConfig), ("prior", PriorConfig),
-                           ("hypotheses", HypothesisConfig)):
+                           ("hypotheses", HypothesisConfig), ("landmarks", LandmarkConfig)):
             _need(isinstance(getattr(self, name), kind), name,
                   f"expected a {kind.__name__}, got {type(getattr(self, name)).__name__}")
         try:
@@ -303,7 +343,7 @@ class TrackConfig:
         return isinstance(other, TrackConfig) and config_to_dict(self) == config_to_dict(other)
 
     def __hash__(self) -> int:
-        return hash(config_to_toml(self))
+        return hash(json.dumps(config_to_dict(self), sort_keys=True))
 
     def merged(self, changes: dict) -> TrackConfig:
         """A copy with the nested mapping ``changes`` (as in :func:`config_to_dict`) applied."""
@@ -376,53 +416,3 @@ def config_from_dict(data: dict) -> TrackConfig:
     _need(version == TRACK_CONFIG_VERSION, "format_version",
           f"this jaxhand reads version {TRACK_CONFIG_VERSION}, got {version!r}")
     return _build(TrackConfig(), data, "")
-
-
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        return ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")) if not math.isfinite(v) else repr(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, list):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise InputError(f"cannot write {v!r} to TOML")
-
-
-def _toml_lines(d: dict, prefix: tuple) -> list[str]:
-    # TOML has no null: a None is left out, and reading the file gives the field's default back
-    lines = [f"{k} = {_toml_value(v)}" for k, v in d.items() if not isinstance(v, dict) and v is not None]
-    for k, v in d.items():
-        if isinstance(v, dict):
-            lines += ["", f"[{'.'.join(prefix + (k,))}]"] + _toml_lines(v, prefix + (k,))
-    return lines
-
-
-def config_to_toml(config: TrackConfig) -> str:
-    """The whole tree as TOML text (every field, format version first)."""
-    return "\n".join(_toml_lines(config_to_dict(config), ())) + "\n"
-
-
-def save_track_config(config: TrackConfig, path: str | Path) -> None:
-    """Write ``config`` to a TOML file that :func:`load_track_config` reads back exactly."""
-    Path(path).write_text(config_to_toml(config))
-
-
-def load_track_config(path: str | Path) -> TrackConfig:
-    """Read a TOML tracking config (missing keys keep their defaults).
-
-    Raises:
-        InputError: naming the file and the key (unknown keys with a "did you mean" hint).
-    """
-    path = Path(path)
-    try:
-        data: dict[str, Any] = tomllib.loads(path.read_text())
-    except (OSError, tomllib.TOMLDecodeError) as err:
-        raise InputError(f"{path}: {err}") from err
-    try:
-        return config_from_dict(data)
-    except InputError as err:
-        raise InputError(f"{path}: {err}") from None

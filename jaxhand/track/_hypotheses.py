@@ -93,15 +93,16 @@ class _Candidates(eqx.Module):
 
 
 def candidates(model: Model, rig: tuple, feats: tuple, ghk: GHKState, extras, extra_valid, build, fit_config,
-               numbers, passes: int, priors, n_flips: int, flip_rad) -> _Candidates:
-    """The prediction, its flips and the ``extras`` (where ``extra_valid``) solved in one vmapped call."""
+               numbers, passes: int, priors, n_flips: int, flip_rad, terms: tuple = ()) -> _Candidates:
+    """The prediction, its flips and the ``extras`` (where ``extra_valid``) solved in one vmapped
+    call, each with the frame's extra solve ``terms``."""
     fractions = fit_config.link_fractions
     q_pred = ghk.x
     starts = jnp.concatenate([q_pred[None], flip_starts(model, rig, feats, q_pred, n_flips, flip_rad, fractions),
                               extras])
     valid = jnp.concatenate([jnp.ones(1 + n_flips, bool), extra_valid])
     solved = jax.vmap(lambda q0: solve_frame(model, rig, feats, q_pred, q0, build, fit_config, numbers, passes,
-                                             priors))(starts)
+                                             priors, terms))(starts)
     merit = jax.vmap(lambda q: image_merit(model, rig, feats, q, fractions, numbers.robust_scale_px,
                                            numbers.rms_scale_px))(solved.q)
     return _Candidates(solved=solved, merit=jnp.where(valid & solved.ok, merit, -1.0), features_ok=features_ok(feats))
@@ -113,10 +114,10 @@ def _unpack(static: _Static, consts: tuple):
 
 
 @functools.partial(jax.jit, static_argnums=0)
-def _candidates_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras, extra_valid):
+def _candidates_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras, extra_valid, terms: tuple = ()):
     (model, rig, build, fit_config, numbers, passes, _, _, priors, _), (n_flips, flip_rad) = _unpack(static, consts)
     return candidates(model, rig, tuple(Features(*f) for f in feats), GHKState(*ghk), extras, extra_valid, build,
-                      fit_config, numbers, passes, priors, n_flips, flip_rad)
+                      fit_config, numbers, passes, priors, n_flips, flip_rad, terms)
 
 
 @functools.partial(jax.jit, static_argnums=0)
@@ -144,9 +145,9 @@ class HypothesisProgram:
         self._consts, self._static = tuple(leaves), _Static((treedef, static))
         self.n_flips = hyp.flips
 
-    def candidates(self, feats: tuple, ghk: tuple, extras, extra_valid) -> _Candidates:
+    def candidates(self, feats: tuple, ghk: tuple, extras, extra_valid, terms: tuple = ()) -> _Candidates:
         """Every start's solve and merit (device arrays)."""
-        return _candidates_jit(self._static, self._consts, feats, ghk, extras, extra_valid)
+        return _candidates_jit(self._static, self._consts, feats, ghk, extras, extra_valid, terms)
 
     def commit(self, cands: _Candidates, index: int, ghk: tuple, q_last):
         """``(q_solved, q_filtered, scalars), (x, v, a)`` of the chosen candidate."""

@@ -35,6 +35,7 @@ from ..model import Model
 from ..viz import VideoWriter, draw_view, plot_joint_angles
 from ._config import TrackConfig, config_to_dict
 from ._frontend import AbstractFrontEnd, ImageFrontEnd
+from ._landmarks import LandmarkRun
 from ._tracker import StepReport, Tracker
 
 __all__ = ["track_sequence", "accuracy_summary", "frame_tip_error_px", "loss_flag_quality"]
@@ -132,7 +133,8 @@ def loss_flag_quality(tip_error_px, confidence, lost, *, bad_px: float = 8.0, go
 def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, frontend: AbstractFrontEnd | None = None,
                    *, config: TrackConfig | None = None, truth: np.ndarray | None = None, video: bool = True,
                    progress: bool | None = None, max_frames: int | None = None, overwrite: bool = False,
-                   resume: bool = False, proposals: Callable[[int], np.ndarray | None] | None = None) -> dict:
+                   resume: bool = False, proposals: Callable[[int], np.ndarray | None] | None = None,
+                   landmarks=None) -> dict:
     """Track ``model`` through ``sources`` (one :class:`~jaxhand.io.FrameSource` per camera, or
     any iterables of :class:`~jaxhand.io.Frame` with ``fps`` and ``len``).
 
@@ -143,8 +145,15 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
     tracker restarts at that frame's filtered pose with zero velocity (the summary's ``"resumed"``
     says so), and the video of the rest goes to ``overlay_from_NNNN.mp4``.
 
+    With ``landmarks`` (:mod:`jaxhand.track._landmarks`) the run starts from the first frame's
+    landmark pose when ``q0`` is None (a given ``q0`` wins), restarts from a lost frame's
+    landmark pose (``config.landmarks.restart``) and, with ``config.landmarks.fuse_weight``,
+    adds each frame's landmarks to its solve; ``summary.json`` reports the restarts and how the
+    poses sit on the landmarks (``"landmarks"``).
+
     Args:
-        q0: initial state (validated against the limits; ignored when resuming).
+        q0: initial state (validated against the limits; ignored when resuming); None: the
+            landmark pose of the first frame (needs ``landmarks``).
         out_dir: where ``angles.csv``, ``results.npz``, ``summary.json``, ``overlay.mp4`` and
             ``angles.png`` go (created if needed).
         frontend: the front end (default: an :class:`~jaxhand.ImageFrontEnd` with ``config.image``).
@@ -157,6 +166,8 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
         proposals: ``frame -> (k, n_q)`` extra starting poses of that frame (or None), e.g. a
             landmark fit; they join the hypotheses (:attr:`TrackConfig.hypotheses`). The summary
             counts the re-initialisations (frames not lost after a lost one) and the winning starts.
+        landmarks: a :class:`~jaxhand.landmarks.LandmarkSequence` of the first camera (fitted
+            here, ``config.landmarks.fit``) or its fitted :class:`~jaxhand.landmarks.LandmarkPoses`.
 
     Returns:
         The summary written to ``summary.json``.
@@ -182,6 +193,11 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
     if isinstance(frontend, ImageFrontEnd):   # the report records the settings the run used
         config = dataclasses.replace(config, image=frontend.config)
     tracker = Tracker(model, cameras, frontend, config, dt_s=1.0 / fps)
+    lm = None if landmarks is None else LandmarkRun(model, cameras[0], landmarks, config.landmarks, n)
+    if q0 is None and not resume:
+        if lm is None:
+            raise InputError("q0: give an initial pose (or landmarks to start from)")
+        q0 = lm.first_pose(0)
     if not resume:
         state = tracker.init(q0)
         _check_view(model, cameras, state.q_last)
@@ -198,7 +214,7 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
                        "state": f"re-initialised at the filtered pose of frame {writer.last_frame} with zero "
                                 "velocity (the filter's velocity and the front end's templates start afresh)"}
         return _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, truth, video, progress,
-                    q0, resumed, proposals)
+                    q0, resumed, proposals, lm)
 
 
 def _check_view(model: Model, cameras, q) -> None:
@@ -310,7 +326,7 @@ class _Timings:
 
 
 def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, truth, video, progress, q0,
-         resumed, proposals=None) -> dict:
+         resumed, proposals=None, lm=None) -> dict:
     vw = None
     start = 0 if resumed is None else resumed["after_frame"] + 1
     timings = _Timings()
@@ -335,15 +351,22 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
                 bar.update(1)
                 continue
             images = [f.image for f in frames]
-            state, rep = tracker.step(state, images, frame, frames[0].time_s,
-                                      None if proposals is None else proposals(frame))
+            extra_starts = None if proposals is None else proposals(frame)
+            if lm is None:
+                state, rep = tracker.step(state, images, frame, frames[0].time_s, extra_starts)
+                marks = {}
+            else:
+                state, rep, restarted = lm.step(tracker, state, images, frame, frames[0].time_s, extra_starts)
+                marks = {"restarted": restarted}
             count += 1
             timings.add(rep.timings_s)
             timings.tally(rep)
             writer.write(rep.frame, rep.time_s, rep.q_filtered, rep.confidence, rep.lost, q_pred=rep.q_pred,
-                         q_solved=rep.q_solved, cost=rep.cost, rms_px=rep.rms_px, iterations=rep.iterations)
+                         q_solved=rep.q_solved, cost=rep.cost, rms_px=rep.rms_px, iterations=rep.iterations, **marks)
             if video:
                 tile = _overlay(model, cameras, images, rep)
+                if lm is not None:
+                    lm.draw(tile, rep.frame)
                 if vw is None:
                     vw = VideoWriter(out / video_name, fps, tile.shape[1::-1])
                 vw.write(tile)
@@ -365,6 +388,9 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
     elapsed = time.perf_counter() - started
     summary = _summary(model, cameras, tracker, state, writer, out, fps, config, truth, q0, timings, count,
                        elapsed, resumed)
+    if lm is not None:
+        cols = writer.arrays()
+        summary["landmarks"] = lm.summary(cols["frame"], cols["q"]) if len(writer) else lm.summary([], [])
     if stop is not None:
         summary.update({"interrupted": True, "interrupted_at_frame": int(frame),
                         "stopped_by": "interrupt" if isinstance(stop, KeyboardInterrupt) else str(stop)})

@@ -185,12 +185,12 @@ class Tracker:
                               state.q_last if state.lost else None, frame)
         return extras if len(extras[0]) or hyp.flips else None   # recovery alone: a frame after a good one
 
-    def _solve_hypotheses(self, feats, ghk, state: TrackState, extras, images, fe_state) -> _Picked:
+    def _solve_hypotheses(self, feats, ghk, state: TrackState, extras, images, fe_state, terms: tuple) -> _Picked:
         """Every start solved in one call, the front end's score of the candidates, the winner
         committed (:mod:`jaxhand.track._hypotheses`)."""
         rows, valid, labels = extras
         hyp = self.config.hypotheses
-        cands = self._hypotheses.candidates(feats, ghk, jnp.asarray(rows, self._dtype), jnp.asarray(valid))
+        cands = self._hypotheses.candidates(feats, ghk, jnp.asarray(rows, self._dtype), jnp.asarray(valid), terms)
         qs, merit = (np.asarray(a) for a in jax.device_get((cands.solved.q, cands.merit)))
         t0 = time.perf_counter()
         winner, total = choose(merit, self._scores(images, qs, merit, fe_state))
@@ -216,7 +216,7 @@ class Tracker:
         return full
 
     def step(self, state: TrackState, images: Sequence[np.ndarray | None], frame: int = 0, time_s: float = 0.0,
-             proposals=None) -> tuple[TrackState, StepReport]:
+             proposals=None, terms: tuple = ()) -> tuple[TrackState, StepReport]:
         """Process one frame (one image per camera; ``frame`` is passed to the front end).
 
         After the front end, the compiled frame program runs and its results come back in one
@@ -228,7 +228,8 @@ class Tracker:
         With :attr:`TrackConfig.hypotheses` or ``proposals`` (a caller's (k, n_q) starting poses
         for this frame, e.g. a landmark fit), the first round solves every start in one call and
         keeps the best (:mod:`jaxhand.track._hypotheses`; the front end's ``score`` timed as
-        ``score``); later rounds refine the winner.
+        ``score``); later rounds refine the winner. ``terms``: this frame's extra solve terms
+        (e.g. :class:`~jaxhand.landmarks.LandmarkTerm`), outside the frame's score.
         """
         if len(images) != len(self.cameras):
             raise InputError(f"expected one image per camera ({len(self.cameras)}), got {len(images)}")
@@ -245,10 +246,10 @@ class Tracker:
             t1 = time.perf_counter()
             feats = self._feature_arrays(extracted.features)
             if r == 0 and extras is not None:
-                picked = self._solve_hypotheses(feats, ghk, state, extras, images, fe_state)
+                picked = self._solve_hypotheses(feats, ghk, state, extras, images, fe_state, terms)
                 (q_meas, filtered, scalars), ghk_next = picked.results
             else:
-                (q_meas, filtered, scalars), ghk_next = self._program(feats, ghk, state.q_last, q_start)
+                (q_meas, filtered, scalars), ghk_next = self._program(feats, ghk, state.q_last, q_start, terms)
             q_pred_host, q_meas, filtered, scalars = jax.device_get((q_pred, q_meas, filtered, scalars))  # one fetch
             out = dict(zip(SCALARS, scalars.tolist()))
             t2 = time.perf_counter()
