@@ -134,7 +134,7 @@ def test_fusion_pulls_the_solve_to_the_landmarks(seq, poses):
         solved = []
         for k in range(FRAMES):
             extra = (poses.term(k, weight),) if weight else ()
-            state, rep = tracker.step(state, [None], k, 0.04 * k, extra=extra)
+            state, rep = tracker.step(state, [None], k, 0.04 * k, terms=extra)
             assert not rep.lost
             solved.append(rep.q_solved)
         solved = np.array(solved)

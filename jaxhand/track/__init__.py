@@ -2,7 +2,8 @@
 
 - :class:`TrackConfig` (with :class:`FilterConfig`, :class:`RobustConfig`, :class:`LossConfig`, :class:`PriorConfig`,
   :class:`HypothesisConfig`, :class:`LandmarkConfig`, a :class:`~jaxhand.FitConfig` and an
-  :class:`~jaxhand.ImageConfig`): every setting of a run, saved to and loaded from TOML (:func:`save_track_config`, :func:`load_track_config`);
+  :class:`~jaxhand.ImageConfig`): every setting of a run, saved to and loaded from TOML
+  (:func:`save_track_config`, :func:`load_track_config`);
 - :class:`AbstractFrontEnd` and its final implementations :class:`ImageFrontEnd` (the image
   analysis) and :class:`ExactFrontEnd` (exact features of a known truth, for experiments);
 - :class:`Tracker` (``init``, ``step``), :class:`TrackState`, :class:`StepReport`;
