@@ -4,7 +4,8 @@ Each sequence is tracked from its true first pose at 30 frames/s with the image 
 once with exact features (``ExactFrontEnd``, 0.5 px noise) as the reference, under each named
 setting (a change to ``TrackConfig``). Per run: mean and max absolute error (deg) over the moving
 joints (those whose truth moves), of the reported estimate (``q_filtered``) and of the raw solve
-(``q_solved``), frames flagged lost, and frames/s of the tracker step. Prints a table and writes
+(``q_solved``) and their mean tip error (px), frames flagged lost, and frames/s of the tracker step.
+Prints a table and writes
 ``benchmarks/results/devset.json``.
 
     .venv/bin/python benchmarks/devset.py                                   # default sequences, all settings
@@ -26,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import REPO, RESULTS, environment, format_table, write_json  # noqa: E402
 
 from jaxhand.io import load_devset, open_frames  # noqa: E402
-from jaxhand.track import ExactFrontEnd, ImageFrontEnd, TrackConfig, Tracker, config_to_dict  # noqa: E402
+from jaxhand.track import ExactFrontEnd, ImageFrontEnd, TrackConfig, Tracker, accuracy_summary, config_to_dict  # noqa: E402,E501
 
 SEQUENCES = ("open_close", "index_over_middle", "thumb_opposition", "fast_spread", "wave_two_cameras")
 
@@ -75,6 +76,7 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None):
     for label, q in (("filtered", filt), ("raw", raw)):
         e = np.degrees(np.abs(np.asarray(q) - qt))[:, moving]
         out[f"{label}_mean_deg"], out[f"{label}_max_deg"] = float(e.mean()), float(e.max())
+        out[f"{label}_tip_mean_px"] = accuracy_summary(m, cams, np.asarray(q), qt)["tip_error_px"]["mean"]
     return out
 
 
