@@ -47,11 +47,11 @@ SETTINGS = {
 }
 
 
-def track(seq, config: TrackConfig, exact: bool, frames: int | None):
+def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: float = 0.5):
     m, cams = seq.model, seq.truth.cameras
     n = len(seq.truth.q) if frames is None else min(frames, len(seq.truth.q))
     if exact:
-        frontend, images = ExactFrontEnd(m, cams, seq.truth.q[:n], noise_px=0.5, seed=0), None
+        frontend, images = ExactFrontEnd(m, cams, seq.truth.q[:n], noise_px=noise_px, seed=0), None
     else:
         frontend = ImageFrontEnd(m, cams, config.image)
         folders = [seq.folder / Path(f[0]).parent for f in seq.truth.image_files]

@@ -17,9 +17,9 @@ sequence.
 
 After the experiments it tracks every sequence of the MuJoCo development set (``data/mujoco/``,
 images jaxhand did not draw; :mod:`devset`'s loop) with the default settings, image features and
-exact ones (0.5 px noise) as the reference: mean and max error over the moving joints (deg) of the
-reported estimate and of the raw solve (``q_solved``), frames lost, mean tip error (px); ``--raw``
-adds a run of each with the filter off (``filter.enabled = false``). ``--only devset`` runs only
+exact ones (0.5 px noise, and without noise) as the reference: mean and max error over the moving
+joints (deg) of the reported estimate and of the raw solve (``q_solved``), frames lost, mean tip
+error (px); ``--raw`` adds a run of each with the filter off (``filter.enabled = false``). ``--only devset`` runs only
 these (``results/tracking_devset.json``), ``--only experiments`` only the experiments.
 
     .venv/bin/python benchmarks/tracking.py --only devset --raw
@@ -182,8 +182,9 @@ def devset_names() -> list[str]:
 
 
 def devset(names: list[str], args) -> dict:
-    """Track each dev-set sequence with the default settings, image and exact features (and the
-    filter off with ``--raw``); print the table and return the runs by sequence."""
+    """Track each dev-set sequence with the default settings, image and exact features (0.5 px
+    noise, and none: ``exact_0px``), and the filter off with ``--raw``; print the table and return
+    the runs by sequence."""
     configs = {"": TrackConfig()}
     if args.raw:
         configs["_unfiltered"] = TrackConfig().merged({"filter": {"enabled": False}})
@@ -193,16 +194,18 @@ def devset(names: list[str], args) -> dict:
         seq = load_devset(DEVSET / name)
         entry = {f"{features}{label}": track_devset(seq, config, features == "exact", frames)
                  for label, config in configs.items() for features in ("image", "exact")}
+        entry["exact_0px"] = track_devset(seq, configs[""], True, frames, noise_px=0.0)
         out[name] = {"config": config_to_dict(TrackConfig()), **entry}
         img, ex = entry["image"], entry["exact"]
         rows.append([name, img["frames"], img["filtered_mean_deg"], img["filtered_max_deg"], img["raw_mean_deg"],
                      ex["raw_mean_deg"], ex["raw_max_deg"], ex["filtered_mean_deg"], ex["filtered_max_deg"],
+                     entry["exact_0px"]["raw_mean_deg"], entry["exact_0px"]["filtered_mean_deg"],
                      img["lost"], img["filtered_tip_mean_px"], img["fps"]]
                     + ([entry["image_unfiltered"]["filtered_mean_deg"], entry["image_unfiltered"]["lost"],
                         entry["exact_unfiltered"]["filtered_mean_deg"]] if args.raw else []))
         print(" | ".join(str(v) for v in rows[-1]), flush=True)
     print(format_table(rows, ["dev set", "frames", "image mean", "max", "raw mean", "exact raw mean", "max",
-                              "exact filtered mean", "max", "lost", "tip px", "fps"]
+                              "exact filtered mean", "max", "0 px raw", "0 px filtered", "lost", "tip px", "fps"]
                        + (["image unfiltered", "lost", "exact unfiltered"] if args.raw else [])))
     return out
 
