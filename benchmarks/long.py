@@ -49,6 +49,7 @@ from jaxhand.track import (  # noqa: E402
 
 RUNS = RESULTS / "long"
 
+
 class Variant(NamedTuple):
     """A tracker setting: changes to the default TrackConfig (as in TrackConfig.merged)."""
 
@@ -62,6 +63,7 @@ VARIANTS = {
     "no-filter": Variant({"filter": {"enabled": False}}),    # report and predict the raw solve
     "no-refresh+no-filter": Variant({"refresh_templates": False, "filter": {"enabled": False}}),
     "truth-refresh": Variant({}, refresh_at_truth=True),
+    "truth-refresh+no-filter": Variant({"filter": {"enabled": False}}, refresh_at_truth=True),
     "no-recentre": Variant({"image": {"template_recentre": False}}),
     "no-reextract": Variant({"reextract": 0}),
 }
@@ -207,7 +209,7 @@ def main(argv=None) -> int:
                    help="a further variant from a TrackConfig TOML file (named after the file)")
     p.add_argument("--antialias", type=int, default=1, help="render samples per pixel per axis (jaxhand synth's 1)")
     p.add_argument("--size", default="320x240", help="image size WxH")
-    p.add_argument("--stop", type=int, help="track only the first N frames of each run")
+    p.add_argument("--stop", type=int, help="track only the first N frames of each run (same files as a full run)")
     p.add_argument("--report", action="store_true", help="only summarise the JSONL files already written")
     p.add_argument("--json", default="long.json", help="summary file under benchmarks/results/")
     args = p.parse_args(argv)
