@@ -4,7 +4,8 @@ Each sequence is tracked from its true first pose at 30 frames/s with the image 
 once with exact features (``ExactFrontEnd``, 0.5 px noise) as the reference, under each named
 setting (a change to ``TrackConfig``). Per run: mean and max absolute error (deg) over the moving
 joints (those whose truth moves), of the reported estimate (``q_filtered``) and of the raw solve
-(``q_solved``), frames flagged lost, and frames/s of the tracker step. Prints a table and writes
+(``q_solved``) and their mean tip error (px), frames flagged lost, and frames/s of the tracker step.
+Prints a table and writes
 ``benchmarks/results/devset.json``.
 
     .venv/bin/python benchmarks/devset.py                                   # default sequences, all settings
@@ -26,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import REPO, RESULTS, environment, format_table, write_json  # noqa: E402
 
 from jaxhand.io import load_devset, open_frames  # noqa: E402
-from jaxhand.track import ExactFrontEnd, ImageFrontEnd, TrackConfig, Tracker, config_to_dict  # noqa: E402
+from jaxhand.track import ExactFrontEnd, ImageFrontEnd, TrackConfig, Tracker, accuracy_summary, config_to_dict  # noqa: E402,E501
 
 SEQUENCES = ("open_close", "index_over_middle", "thumb_opposition", "fast_spread", "wave_two_cameras")
 
@@ -52,11 +53,11 @@ SETTINGS = {
 }
 
 
-def track(seq, config: TrackConfig, exact: bool, frames: int | None):
+def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: float = 0.5):
     m, cams = seq.model, seq.truth.cameras
     n = len(seq.truth.q) if frames is None else min(frames, len(seq.truth.q))
     if exact:
-        frontend, images = ExactFrontEnd(m, cams, seq.truth.q[:n], noise_px=0.5, seed=0), None
+        frontend, images = ExactFrontEnd(m, cams, seq.truth.q[:n], noise_px=noise_px, seed=0), None
     else:
         frontend = ImageFrontEnd(m, cams, config.image)
         folders = [seq.folder / Path(f[0]).parent for f in seq.truth.image_files]
@@ -81,6 +82,7 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None):
     for label, q in (("filtered", filt), ("raw", raw)):
         e = np.degrees(np.abs(np.asarray(q) - qt))[:, moving]
         out[f"{label}_mean_deg"], out[f"{label}_max_deg"] = float(e.mean()), float(e.max())
+        out[f"{label}_tip_mean_px"] = accuracy_summary(m, cams, np.asarray(q), qt)["tip_error_px"]["mean"]
     return out
 
 

@@ -15,6 +15,16 @@ sequence.
     .venv/bin/python benchmarks/tracking.py --sweep --only two_camera_hand
     .venv/bin/python benchmarks/tracking.py --only full_hand_spread_flex --radius-scale 0.8 --width-gain 0.05
 
+After the experiments it tracks every sequence of the MuJoCo development set (``data/mujoco/``,
+images jaxhand did not draw; :mod:`devset`'s loop) with the default settings, image features and
+exact ones (0.5 px noise, and without noise) as the reference: mean and max error over the moving
+joints (deg) of the reported estimate and of the raw solve (``q_solved``), frames lost, mean tip
+error (px); ``--raw`` adds a run of each with the filter off (``filter.enabled = false``). ``--only devset`` runs only
+these (``results/tracking_devset.json``), ``--only experiments`` only the experiments.
+
+    .venv/bin/python benchmarks/tracking.py --only devset --raw
+    .venv/bin/python benchmarks/tracking.py --long --frames 80,2000    # benchmarks/long.py: drift with time
+
 ``--sweep`` measures how much one number depends on the speed of the motion: the same two-finger
 path (or ``--only``'s) played over 60 to 120 frames at the preset's frame rate (two fingers: 2.4 to
 4.8 s at 25 frames/s, so fewer frames is faster motion), each tracked with the image front end; it
@@ -37,9 +47,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import RESULTS, environment, write_json  # noqa: E402
+from _common import REPO, RESULTS, environment, format_table, write_json  # noqa: E402
+from devset import track as track_devset  # noqa: E402
+from long import main as long_main  # noqa: E402
 
 from jaxhand.image import ImageConfig  # noqa: E402
+from jaxhand.io import load_devset  # noqa: E402
 from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402
 from jaxhand.track import (  # noqa: E402
     ExactFrontEnd,
@@ -160,10 +173,54 @@ def sweep(name: str, args) -> int:
     return 0
 
 
+DEVSET = REPO / "data" / "mujoco"
+
+
+def devset_names() -> list[str]:
+    """Every sequence folder of the development set."""
+    return sorted(p.name for p in DEVSET.iterdir() if (p / "truth.json").is_file())
+
+
+def devset(names: list[str], args) -> dict:
+    """Track each dev-set sequence with the default settings, image and exact features (0.5 px
+    noise, and none: ``exact_0px``), and the filter off with ``--raw``; print the table and return
+    the runs by sequence."""
+    configs = {"": TrackConfig()}
+    if args.raw:
+        configs["_unfiltered"] = TrackConfig().merged({"filter": {"enabled": False}})
+    frames = 12 if args.quick else args.frames
+    out, rows = {}, []
+    for name in names:
+        seq = load_devset(DEVSET / name)
+        entry = {f"{features}{label}": track_devset(seq, config, features == "exact", frames)
+                 for label, config in configs.items() for features in ("image", "exact")}
+        entry["exact_0px"] = track_devset(seq, configs[""], True, frames, noise_px=0.0)
+        out[name] = {"config": config_to_dict(TrackConfig()), **entry}
+        img, ex = entry["image"], entry["exact"]
+        rows.append([name, img["frames"], img["filtered_mean_deg"], img["filtered_max_deg"], img["raw_mean_deg"],
+                     ex["raw_mean_deg"], ex["raw_max_deg"], ex["filtered_mean_deg"], ex["filtered_max_deg"],
+                     entry["exact_0px"]["raw_mean_deg"], entry["exact_0px"]["filtered_mean_deg"],
+                     img["lost"], img["filtered_tip_mean_px"], img["fps"]]
+                    + ([entry["image_unfiltered"]["filtered_mean_deg"], entry["image_unfiltered"]["lost"],
+                        entry["exact_unfiltered"]["filtered_mean_deg"]] if args.raw else []))
+        print(" | ".join(str(v) for v in rows[-1]), flush=True)
+    print(format_table(rows, ["dev set", "frames", "image mean", "max", "raw mean", "exact raw mean", "max",
+                              "exact filtered mean", "max", "0 px raw", "0 px filtered", "lost", "tip px", "fps"]
+                       + (["image unfiltered", "lost", "exact unfiltered"] if args.raw else [])))
+    return out
+
+
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if "--long" in argv:
+        return long_main([a for a in argv if a != "--long"])
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="12 frames per sequence, no JSON")
-    parser.add_argument("--only", help="run one sequence")
+    parser.add_argument("--only", help="run one sequence (an experiment or a dev-set folder), or 'experiments' or "
+                                       "'devset'")
+    parser.add_argument("--raw", action="store_true", help="dev set: also track with the filter off")
+    parser.add_argument("--long", action="store_true",
+                        help="run benchmarks/long.py (drift with time) with the other arguments instead")
     parser.add_argument("--method", help="front-end method for every sequence (default: each experiment's own)")
     parser.add_argument("--solver", help="solver for every sequence (default: each experiment's own)")
     parser.add_argument("--robust", type=int, help="IRLS passes per frame (default: TrackConfig's)")
@@ -189,7 +246,7 @@ def main(argv=None) -> int:
     RESULTS.mkdir(parents=True, exist_ok=True)
     for exp in EXPERIMENTS:
         name, method, solver, steps, frames, reextract = exp[:6]
-        if args.only and name != args.only:
+        if args.only and args.only not in (name, "experiments"):
             continue
         seq = make_preset(name, frames=12 if args.quick else (args.frames or frames), size=args.size)
         method, solver = args.method or method, args.solver or solver
@@ -218,14 +275,17 @@ def main(argv=None) -> int:
     head = (f"{'sequence':22s} {'features':12s} {'solver':8s} {'mean°':>6s} {'max°':>6s} {'tip px':>7s} "
             f"{'raw°':>6s} {'θ/frame':>7s} "
             f"{'before loss':>11s} {'fps':>7s}  median ms per stage")
-    print(head)
-    print("-" * len(head))
+    if rows:
+        print(head, "-" * len(head), sep="\n")
     for name, label, solver, r in rows:
         stages = ", ".join(f"{k} {v:.2f}" for k, v in r["median_ms"].items())
         print(f"{name:22s} {label:12s} {solver:8s} {r['joint_error_mean_deg']:6.2f} {r['joint_error_max_deg']:6.1f} "
               f"{r['tip_error_mean_px']:7.2f} {r['solved_joint_error_mean_deg']:6.2f} {r['theta_per_frame']:7.3f} "
               f"{r['frames_before_loss']:5d}/{r['frames']:<5d} "
               f"{r['fps_end_to_end']:7.1f}  {stages}")
+    names = devset_names()
+    if args.only in (None, "devset", *names) and args.radius_scale == 1.0 and not args.width_gain:   # defaults only
+        out["devset"] = devset(names if args.only in (None, "devset") else [args.only], args)
     if not args.quick:
         stem = "tracking" + (f"_{args.only}" if args.only else "")
         if args.radius_scale != 1.0 or args.width_gain:
