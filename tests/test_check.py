@@ -3,6 +3,7 @@
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _params import model_params
 from helpers import fit_camera
 
 import jaxhand as jh
@@ -10,7 +11,7 @@ from jaxhand.camera import look_at_rotation
 from jaxhand.check import jacobian_errors
 
 
-@pytest.mark.parametrize("name", jh.builtin_names())
+@pytest.mark.parametrize("name", model_params(jh.builtin_names()))
 def test_autodiff_matches_finite_differences_and_geometric(name):
     m = jh.builtin_model(name)
     rng = np.random.default_rng(42)

@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _params import model_params
 from helpers import CompileCounter, fit_camera
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -89,7 +90,7 @@ PROGRAMS = [("gn", "gn_eta", "lm_fixed"), ("lm",), ("bounded",)]
 
 
 @pytest.mark.parametrize("solvers", PROGRAMS, ids=lambda s: "+".join(s))
-@pytest.mark.parametrize("name", jh.builtin_names())
+@pytest.mark.parametrize("name", model_params(jh.builtin_names()))
 def test_every_solver_fits_noise_free_problems_exactly_and_recovers_the_truth(name, solvers):
     m, rig, Q, F, Q0 = problems(name)
     lo, hi = np.asarray(m.q_lower), np.asarray(m.q_upper)
@@ -111,6 +112,7 @@ def test_every_solver_fits_noise_free_problems_exactly_and_recovers_the_truth(na
             assert np.all(hist[..., box] >= lo[box]) and np.all(hist[..., box] <= hi[box])
 
 
+@pytest.mark.slow
 def test_solvers_agree_with_each_other_and_with_scipy_on_noisy_features():
     from scipy.optimize import least_squares
 
@@ -218,6 +220,7 @@ def test_a_link_with_every_feature_masked_gives_singular_and_leaves_its_joint_al
         assert (np.abs(q[:, others] - Q[:, others]).max(-1) < 1e-6).mean() >= 0.98, solver
 
 
+@pytest.mark.slow
 def test_a_rank_deficient_view_gives_singular_not_nan():
     # mouse3d seen from above: the index flexes along the viewing direction, so its link lines
     # cannot see the flexion and only the tip constrains it (rank 6 of 8 at every pose). The

@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _params import model_params
 from helpers import CompileCounter, FunctionFrontEnd, fit_camera, fixed_front_end
 
 import jaxhand as jh
@@ -55,7 +56,7 @@ def _noisy_features(model, rig, q, rng):
     return tuple(out)
 
 
-@pytest.mark.parametrize("name", ["two_fingers", "hand21", "hand27", "mouse3d"])
+@pytest.mark.parametrize("name", model_params(["two_fingers", "hand21", "hand27", "mouse3d"]))
 def test_geometric_jacobian_equals_jacfwd(name):
     m = jh.builtin_model(name)
     rng = np.random.default_rng(5)
@@ -172,7 +173,8 @@ def _reference_step(tracker, state, features):
     return result, np.asarray(filtered), ghk
 
 
-@pytest.mark.parametrize("preset, solver", [("two_finger_occlusion", "lm"), ("two_camera_hand", "bounded")])
+@pytest.mark.parametrize("preset, solver", [("two_finger_occlusion", "lm"),
+                                            pytest.param("two_camera_hand", "bounded", marks=pytest.mark.slow)])
 def test_fused_step_equals_the_unfused_calls(preset, solver):
     seq = make_preset(preset, frames=5, size=(160, 120))
     truth_features = [features_from_pose(seq.model, seq.cameras, q, noise_px=0.5, rng=np.random.default_rng(k))

@@ -1,0 +1,12 @@
+"""Shared test parametrisations."""
+
+import pytest
+
+#: built-in models whose cases run only under ``make test`` (``slow``): the fast loop keeps the
+#: small chains and hand21, which cover the same code paths
+HEAVY_MODELS = ("hand21_right", "hand27", "hand27_right", "mouse3d")
+
+
+def model_params(names):
+    """``names`` as pytest parameters, the heavy models marked slow."""
+    return [pytest.param(n, marks=pytest.mark.slow) if n in HEAVY_MODELS else n for n in names]
