@@ -62,6 +62,7 @@ from _common import (  # noqa: E402
     time_call,
     write_json,
 )
+from _peers import vmapped_peers  # noqa: E402
 
 import jaxhand as jh  # noqa: E402
 
@@ -316,6 +317,22 @@ def main(argv=None) -> int:
         batch.append({"solver": solver, "kind": "jaxhand fit_batch", "n": n_batch, "seconds": t,
                       "problems_per_s": n_batch / t, "compile_s": max(first - t, 0.0),
                       "success_rate": float(np.mean(joint_error_deg(r.q, Q) < SUCCESS_DEG))})
+    # the batched bounded Levenberg-Marquardt (fit_batch(solver="batch")), and peers vmapped alike
+    first = first_call_seconds(lambda: jh.fit_batch(model, cam, F, Q0, solver="batch").q)
+    runs = [time_call(lambda: jh.fit_batch(model, cam, F, Q0, solver="batch")) for _ in range(3)]
+    t = statistics.median(t for t, _ in runs)
+    batch.append({"solver": "batch", "kind": "jaxhand fit_batch", "n": n_batch, "seconds": t,
+                  "problems_per_s": n_batch / t, "compile_s": max(first - t, 0.0),
+                  "converged_rate": float(np.mean(np.asarray(runs[0][1].converged))),
+                  "success_rate": float(np.mean(joint_error_deg(runs[0][1].q, Q) < SUCCESS_DEG))})
+    peers = vmapped_peers(lambda q, f: sp.res(q, f), lambda q, f: sp.jac(q, f), 50)
+    for name, run in peers.items():
+        first = first_call_seconds(lambda run=run: run(F, jnp.asarray(Q0))[0])
+        t, out = time_call(lambda run=run: run(F, jnp.asarray(Q0)))
+        batch.append({"solver": name, "kind": "peer, vmapped", "n": n_batch, "seconds": t,
+                      "problems_per_s": n_batch / t, "compile_s": max(first - t, 0.0),
+                      "converged_rate": float(np.mean(np.asarray(out[2]))),
+                      "success_rate": float(np.mean(joint_error_deg(np.asarray(out[0]), Q) < SUCCESS_DEG))})
     t0 = time.perf_counter()
     qs = [jh.fit(model, cam, _one(F, i), Q0[i], solver="lm").q for i in range(n_batch)]
     t = time.perf_counter() - t0
