@@ -11,8 +11,10 @@ import jax.numpy as jnp
 
 def vmapped_peers(res, jac, max_steps: int) -> dict:
     """name -> jitted ``run(args_batch, q0s) -> (q, cost, converged, iterations)``, each a vmap
-    of one solve of ``res(q, args)`` (``jac(q, args)``: its Jacobian, for jaxopt's LM) over the
-    problems and their starts ``q0s`` (B, n_q)."""
+    of one solve of ``res(q, args)`` over the problems and their starts ``q0s`` (B, n_q).
+    ``jac(q, args)`` is kept for a peer that takes a Jacobian: jaxopt 0.8.5's LM fails with
+    ``jac_fun`` (no attribute ``_jac_fun``), so it differentiates ``res`` itself."""
+    del jac
     import jaxopt
     import optimistix as optx
 
@@ -42,6 +44,5 @@ def vmapped_peers(res, jac, max_steps: int) -> dict:
         "optimistix_levenberg_marquardt": optx_solver(optx.LevenbergMarquardt(**tol)),
         "jaxopt_gauss_newton": jaxopt_solver(lambda: jaxopt.GaussNewton(res, maxiter=max_steps, tol=1e-8)),
         "jaxopt_levenberg_marquardt": jaxopt_solver(lambda: jaxopt.LevenbergMarquardt(
-            res, maxiter=max_steps, tol=1e-8, xtol=1e-10, gtol=1e-8, jac_fun=jac, materialize_jac=True,
-            solver="cholesky")),
+            res, maxiter=max_steps, tol=1e-8, xtol=1e-10, gtol=1e-8, materialize_jac=True, solver="cholesky")),
     }
