@@ -62,6 +62,7 @@ from _common import (  # noqa: E402
     time_call,
     write_json,
 )
+from _peers import vmapped_peers  # noqa: E402
 
 import jaxhand as jh  # noqa: E402
 
@@ -263,6 +264,7 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="smoke run: 20 problems, batch 100, no files")
     parser.add_argument("--n", type=int, default=None, help="problems per setting (default 200)")
     parser.add_argument("--out", default=None, help="JSON path (default benchmarks/results/solvers.json)")
+    parser.add_argument("--batch-only", action="store_true", help="only the batch throughput section")
     ns = parser.parse_args(argv)
     n = ns.n or (20 if ns.quick else 200)
     n_batch = 100 if ns.quick else 1000
@@ -276,7 +278,7 @@ def main(argv=None) -> int:
     cam = camera(model, _rotation(45.0, 20.0))
     sp = ScipyProblem(model, cam)
     rows = []
-    for si, sigma in enumerate(sigmas):
+    for si, sigma in enumerate(() if ns.batch_only else sigmas):
         for ni, noise in enumerate(NOISES_PX):
             Q, F, Q0 = make_problems(model, cam, n, sigma, noise, seed=100 * si + ni)
             scipy_compile = sp.compile(Q0[0], _one(F, 0))
@@ -308,7 +310,7 @@ def main(argv=None) -> int:
     sigma, noise = BATCH_SETTING
     Q, F, Q0 = make_problems(model, cam, n_batch, sigma, noise, seed=999)
     batch = []
-    for solver in SOLVERS:
+    for solver in (("lm", "bounded") if ns.batch_only else SOLVERS):
         first = first_call_seconds(lambda s=solver: jh.fit_batch(model, cam, F, Q0, solver=s).q)
         runs = [time_call(lambda s=solver: jh.fit_batch(model, cam, F, Q0, solver=s)) for _ in range(3)]
         t = statistics.median(t for t, _ in runs)
@@ -316,6 +318,24 @@ def main(argv=None) -> int:
         batch.append({"solver": solver, "kind": "jaxhand fit_batch", "n": n_batch, "seconds": t,
                       "problems_per_s": n_batch / t, "compile_s": max(first - t, 0.0),
                       "success_rate": float(np.mean(joint_error_deg(r.q, Q) < SUCCESS_DEG))})
+    # the batched bounded Levenberg-Marquardt (fit_batch(solver="batch")), and peers vmapped alike
+    first = first_call_seconds(lambda: jh.fit_batch(model, cam, F, Q0, solver="batch").q)
+    runs = [time_call(lambda: jh.fit_batch(model, cam, F, Q0, solver="batch")) for _ in range(3)]
+    t = statistics.median(t for t, _ in runs)
+    batch.append({"solver": "batch", "kind": "jaxhand fit_batch", "n": n_batch, "seconds": t,
+                  "problems_per_s": n_batch / t, "compile_s": max(first - t, 0.0),
+                  "converged_rate": float(np.mean(np.asarray(runs[0][1].converged))),
+                  "success_rate": float(np.mean(joint_error_deg(runs[0][1].q, Q) < SUCCESS_DEG))})
+    peers = vmapped_peers(lambda q, f: sp.res(q, f), lambda q, f: sp.jac(q, f), 50)
+    n_peer = min(n_batch, 200)   # the vmapped peers run every lane to the slowest: fewer problems
+    F_peer = jax.tree_util.tree_map(lambda x: x[:n_peer], F)
+    for name, run in peers.items():
+        first = first_call_seconds(lambda run=run: run(F_peer, jnp.asarray(Q0[:n_peer]))[0])
+        t, out = time_call(lambda run=run: run(F_peer, jnp.asarray(Q0[:n_peer])))
+        batch.append({"solver": name, "kind": "peer, vmapped", "n": n_peer, "seconds": t,
+                      "problems_per_s": n_peer / t, "compile_s": max(first - t, 0.0),
+                      "converged_rate": float(np.mean(np.asarray(out[2]))),
+                      "success_rate": float(np.mean(joint_error_deg(np.asarray(out[0]), Q[:n_peer]) < SUCCESS_DEG))})
     t0 = time.perf_counter()
     qs = [jh.fit(model, cam, _one(F, i), Q0[i], solver="lm").q for i in range(n_batch)]
     t = time.perf_counter() - t0
@@ -332,6 +352,15 @@ def main(argv=None) -> int:
     best_loop = max((b for b in batch if b["kind"] == "scipy loop"), key=lambda b: b["problems_per_s"])
     for b in batch:
         b["speedup_vs_best_scipy_loop"] = b["problems_per_s"] / best_loop["problems_per_s"]
+
+    if ns.batch_only:
+        env["load_average_1min_end"] = load_average()
+        print(format_table([[b["solver"], b["kind"], b["seconds"], b["problems_per_s"], b["speedup_vs_best_scipy_loop"],
+                             100 * b["success_rate"], b["compile_s"]] for b in batch],
+                           ["solver", "how", "seconds", "problems/s", "x best scipy loop", "success%", "compile s"]))
+        if out_path is not None:
+            write_json({"benchmark": "solvers.batch", "environment": env, "batch": batch}, out_path)
+        return 0
 
     # one view: ambiguity and weakly observed joints
     Qa = jh.random_q(model, np.random.default_rng(7), min(n, 200))

@@ -27,7 +27,8 @@ from jaxtyping import Array, Float
 from ..kinematics import Pose, base_pose
 from ..model import Model
 
-__all__ = ["POINT_NAMES", "FINGERS", "LandmarkMap", "landmark_map", "landmark_positions", "BUILTIN_HANDEDNESS"]
+__all__ = ["POINT_NAMES", "FINGERS", "LandmarkMap", "landmark_map", "landmark_positions", "landmark_offsets",
+           "BUILTIN_HANDEDNESS"]
 
 FINGERS = ("index", "middle", "ring", "little")
 #: The 21 landmark names in MediaPipe/OpenPose order.
@@ -112,16 +113,22 @@ def landmark_map(model: Model) -> LandmarkMap:
                        offset_mm=np.zeros((len(POINT_NAMES), 3)))
 
 
-def landmark_positions(model: Model, lmap: LandmarkMap, pose: Pose, q: Float[Array, " nq"]) -> Float[Array, "21 3"]:
-    """World positions (mm) of the 21 landmarks at a pose (absent points: the root's origin)."""
-    frame = np.array(lmap.frame, dtype=int)
+def landmark_offsets(model: Model, lmap: LandmarkMap, dtype) -> Float[Array, "21 3"]:
+    """Each landmark in its frame (mm): the map's offset, plus ``length + radius`` along the
+    link axis for a fingertip."""
     link = np.array(lmap.link, dtype=int)
-    T_root = base_pose(model, q)
-    T = jnp.where((frame < 0)[:, None, None], T_root, pose.frames[np.maximum(frame, 0)])      # (21, 4, 4)
     axis = np.array(model.link_axis, dtype=int)[np.maximum(link, 0)] if model.n_links else np.zeros(21, int)
     if model.n_links:
         reach = jnp.where(link >= 0, (model.link_length_mm + model.link_radius_mm)[np.maximum(link, 0)], 0.0)
     else:
-        reach = jnp.zeros(21, T.dtype)
-    local = lmap.offset_mm.astype(T.dtype) + reach[:, None] * jnp.asarray(np.eye(3)[axis], T.dtype)
+        reach = jnp.zeros(21, dtype)
+    return lmap.offset_mm.astype(dtype) + reach[:, None].astype(dtype) * jnp.asarray(np.eye(3)[axis], dtype)
+
+
+def landmark_positions(model: Model, lmap: LandmarkMap, pose: Pose, q: Float[Array, " nq"]) -> Float[Array, "21 3"]:
+    """World positions (mm) of the 21 landmarks at a pose (absent points: the root's origin)."""
+    frame = np.array(lmap.frame, dtype=int)
+    T_root = base_pose(model, q)
+    T = jnp.where((frame < 0)[:, None, None], T_root, pose.frames[np.maximum(frame, 0)])      # (21, 4, 4)
+    local = landmark_offsets(model, lmap, T.dtype)
     return jnp.einsum("pij,pj->pi", T[:, :3, :3], local) + T[:, :3, 3]

@@ -27,7 +27,8 @@ from ..camera import as_rig
 from ..kinematics import pose as pose_at
 from ..model import Model
 from ..residuals import ResidualArgs, point_jacobian, residuals, residuals_and_jacobian
-from ._convention import POINT_NAMES, LandmarkMap, landmark_map, landmark_positions
+from ..solve.internal import SparsePattern, lane_contract, lane_frames, lane_point_jacobian, lane_root, point_dependence
+from ._convention import POINT_NAMES, LandmarkMap, landmark_map, landmark_offsets, landmark_positions
 
 __all__ = ["Landmarks", "LandmarkArgs", "make_landmarks", "make_landmark_args", "landmark_residuals",
            "landmark_residuals_and_jacobian", "stacked_residuals", "stacked_residuals_and_jacobian",
@@ -212,6 +213,70 @@ def landmark_residuals_and_jacobian(q: Float[Array, " nq"], args: LandmarkArgs, 
         J3 = Jp
     rs.append(((_to_frame_3d(args, p) - args.landmarks.mm.astype(p.dtype)) * s3[:, None]).reshape(-1))
     Js.append((J3 * s3[:, None, None]).reshape(-1, model.n_q))
+    return jnp.concatenate(rs), jnp.concatenate(Js)
+
+
+def _dependence(model: Model, lmap: LandmarkMap) -> np.ndarray:
+    """(21, n_q) static: which q entries move each (present) landmark."""
+    return point_dependence(model, _jacobian_frames(model, lmap)) & np.array(lmap.present)[:, None]
+
+
+def _row_major(dep: np.ndarray, width: int) -> np.ndarray:
+    """Positions, in a (pairs, width) array of (point, q) pairs, of the compact order of rows
+    (point, component) then q entries."""
+    start = np.concatenate([[0], np.cumsum(dep.sum(axis=1))])
+    return np.array([t * width + a for i in range(dep.shape[0]) for a in range(width)
+                     for t in range(start[i], start[i + 1])], dtype=int)
+
+
+def lane_jacobian_pattern(model: Model, lmap: LandmarkMap, n_cameras: int, *, use_3d: bool = True) -> SparsePattern:
+    """The static nonzero pattern of :func:`lane_residuals_and_jacobian`'s J (absent points: none)."""
+    dep = _dependence(model, lmap)
+    blocks = [np.repeat(dep, 2, axis=0)] * n_cameras + ([np.repeat(dep, 3, axis=0)] if use_3d else [])
+    return SparsePattern(np.concatenate(blocks))
+
+
+def lane_residuals_and_jacobian(q: Float[Array, "nq B"], args: LandmarkArgs, *, use_3d: bool = True
+                                ) -> tuple[Float[Array, "r B"], Float[Array, "nnz B"]]:
+    """:func:`landmark_residuals_and_jacobian` of B problems at once, lanes last: ``q`` is
+    (n_q, B), ``args.landmarks`` has a leading batch axis B, and J comes as its structural
+    nonzeros in the order of :func:`lane_jacobian_pattern` (kernels of
+    :mod:`jaxhand.solve.internal`). ``use_3d`` (static) False leaves out the 3-D rows, for a batch
+    without any 3-D point (their residuals are zero: the cost is the same)."""
+    model, lm = args.model, args.landmarks
+    R, p = lane_frames(model, q)
+    frame = np.array(args.lmap.frame, dtype=int)
+    R_root, p_root = lane_root(model, q)
+    R_pt = jnp.where((frame < 0)[:, None, None, None], R_root, R[np.maximum(frame, 0)])     # (21, 3, 3, B)
+    p_pt = jnp.where((frame < 0)[:, None, None], p_root, p[np.maximum(frame, 0)])
+    local = landmark_offsets(model, args.lmap, q.dtype)
+    P = lane_contract(R_pt, local[:, None, :, None], axis=2) + p_pt                        # (21, 3, B)
+    dep = _dependence(model, args.lmap)
+    pair_p = np.nonzero(dep)[0]
+    Jp = lane_point_jacobian(model, q, R, p, P, _jacobian_frames(model, args.lmap))         # (pairs, 3, B)
+    s2, s3 = jax.vmap(lambda one: _weights(eqx.tree_at(lambda a: a.landmarks, args, one), q.dtype))(lm)
+    B = q.shape[-1]
+    P_rows = jnp.moveaxis(P, -1, 0).reshape(-1, 3)                                           # (B * 21, 3)
+    rs, Js = [], []
+    for c, cam in enumerate(args.cameras):
+        px, dpx = _pixels_and_jacobian(cam, P_rows)
+        px = jnp.moveaxis(px.reshape(B, N_POINTS, 2), 0, -1)                                 # (21, 2, B)
+        dpx = jnp.moveaxis(dpx.reshape(B, N_POINTS, 2, 3), 0, -1)                            # (21, 2, 3, B)
+        w = s2[:, c].T                                                                       # (21, B)
+        rs.append(((px - jnp.moveaxis(lm.px[:, c].astype(q.dtype), 0, -1)) * w[:, None]).reshape(-1, B))
+        Jc = lane_contract(dpx[pair_p], Jp[:, None], axis=2) * w[pair_p][:, None]           # (pairs, 2, B)
+        Js.append(Jc.reshape(-1, B)[_row_major(dep, 2)])
+    if use_3d:
+        w3 = s3.T
+        if lm.frame_3d == "camera":
+            cam0 = args.cameras[0]
+            R0 = cam0.R.astype(q.dtype)[None, :, :, None]
+            P3 = lane_contract(R0, P[:, None], axis=2) + cam0.t.astype(q.dtype)[None, :, None]
+            J3 = lane_contract(R0, Jp[:, None], axis=2)
+        else:
+            P3, J3 = P, Jp
+        rs.append(((P3 - jnp.moveaxis(lm.mm.astype(q.dtype), 0, -1)) * w3[:, None]).reshape(-1, B))
+        Js.append((J3 * w3[pair_p][:, None]).reshape(-1, B)[_row_major(dep, 3)])
     return jnp.concatenate(rs), jnp.concatenate(Js)
 
 

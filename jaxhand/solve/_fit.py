@@ -14,7 +14,8 @@ from ..camera import as_rig
 from ..features import Features, raise_on_values, validate_features
 from ..kinematics import validate_q
 from ..model import Model
-from ..residuals import ResidualArgs, residuals, residuals_and_jacobian
+from ..residuals import DEFAULT_LINK_FRACTIONS, ResidualArgs, residuals, residuals_and_jacobian
+from ._batched import BatchConfig, check_batch_config, solve_batched
 from ._config import FitConfig, check_config
 from ._damped import make_damped_gauss_newton
 from ._driver import solve_least_squares
@@ -117,9 +118,30 @@ def fit(model: Model, cameras, features, q0, *, solver: str = "lm", config: FitC
     return _fit_jit(model, rig, _as_arrays(feats), jnp.asarray(q0), build, config)
 
 
+class _EdgeResiduals(eqx.Module):
+    """The link and tip residuals with their geometric Jacobian, vmapped and laid out lanes last
+    for the batched solver (a pytree callable: its compiled programs are cached)."""
+
+    model: Model
+    cameras: tuple
+    fractions: jax.Array
+
+    def __call__(self, q, feats):
+        def one(q1, f1):
+            return residuals_and_jacobian(q1, ResidualArgs(model=self.model, cameras=self.cameras, features=f1,
+                                                           fractions=self.fractions))
+
+        r, J = jax.vmap(one)(q.T, feats)
+        return jnp.moveaxis(r, 0, -1), jnp.moveaxis(J, 0, -1).reshape(-1, q.shape[-1])
+
+
 def fit_batch(model: Model, cameras, features, q0, *, solver: str = "lm",
-              config: FitConfig | None = None) -> FitResult:
-    """:func:`fit` over a leading batch axis: ``jax.vmap`` of the same solve, one compilation.
+              config: FitConfig | BatchConfig | None = None) -> FitResult:
+    """:func:`fit` over a leading batch axis: ``jax.vmap`` of the same solve, one compilation;
+    or, with ``solver="batch"``, the batched bounded Levenberg-Marquardt of
+    :mod:`jaxhand.solve._batched` (normal equations per lane, active set at the joint limits,
+    slow lanes regrouped; ``config`` a :class:`~jaxhand.solve.internal.BatchConfig`), which does
+    not wait for the slowest problem.
 
     Args:
         features: one Features per camera whose every array has a leading batch axis B.
@@ -128,8 +150,16 @@ def fit_batch(model: Model, cameras, features, q0, *, solver: str = "lm",
     Returns:
         A :class:`FitResult` whose fields have the leading axis B.
     """
-    build, config = solver_program(solver, config)
     rig = as_rig(cameras)
+    if solver == "batch":
+        if config is not None and not isinstance(config, BatchConfig):
+            raise InputError(f"config: solver 'batch' takes a BatchConfig, got {type(config).__name__}")
+        config = check_batch_config(config)
+        feats = _validate_batch_features(model, rig, features)
+        q0s = _validate_batch_q(model, q0, int(np.asarray(feats[0].lines).shape[0]))
+        fn = _EdgeResiduals(model=model, cameras=rig, fractions=jnp.asarray(DEFAULT_LINK_FRACTIONS))
+        return solve_batched(fn, _as_arrays(feats), jnp.asarray(q0s), StateSpace.of(model), config)
+    build, config = solver_program(solver, config)
     feats = _validate_batch_features(model, rig, features)
     B = int(np.asarray(feats[0].lines).shape[0])
     q0s = _validate_batch_q(model, q0, B)

@@ -8,10 +8,28 @@ change with the package; users call :func:`jaxhand.fit`.
   inside a caller's program (a robust loop, a frame step);
 - :func:`check_config` is the boundary check of a :class:`~jaxhand.FitConfig` that
   :func:`jaxhand.fit` runs (for configs that carry one, such as the tracker's);
-- :data:`JACOBIANS` lists the values of :attr:`~jaxhand.FitConfig.jacobian`.
+- :data:`JACOBIANS` lists the values of :attr:`~jaxhand.FitConfig.jacobian`;
+- :func:`batched_lm` / :func:`batch_lm` are the batched bounded Levenberg-Marquardt of
+  :mod:`jaxhand.solve._batched` (lanes last / per-problem residuals), with its
+  :class:`BatchConfig` and :func:`check_batch_config`;
+- :func:`lane_frames`, :func:`lane_root`, :func:`lane_point_jacobian`: kinematics with the
+  batch axis last, for residual kernels of that solver.
 """
 
+from ._batched import (
+    BatchConfig,
+    SparsePattern,
+    batch_lm,
+    batched_lm,
+    check_batch_config,
+    lane_cholesky_solve,
+    solve_batched,
+)
 from ._config import JACOBIANS, check_config
 from ._fit import fit_traced, solver_program
+from ._lanes import lane_contract, lane_frames, lane_matmul, lane_point_jacobian, lane_root, point_dependence
 
-__all__ = ["JACOBIANS", "check_config", "fit_traced", "solver_program"]
+__all__ = ["JACOBIANS", "check_config", "fit_traced", "solver_program", "BatchConfig", "SparsePattern", "batch_lm",
+           "batched_lm",
+           "check_batch_config", "lane_cholesky_solve", "solve_batched", "lane_contract", "lane_frames", "lane_matmul",
+           "lane_point_jacobian", "lane_root", "point_dependence"]
