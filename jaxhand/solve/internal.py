@@ -18,7 +18,6 @@ change with the package; users call :func:`jaxhand.fit`.
 
 from ._batched import (
     BatchConfig,
-    SparsePattern,
     batch_lm,
     batched_lm,
     check_batch_config,
@@ -28,6 +27,7 @@ from ._batched import (
 from ._config import JACOBIANS, check_config
 from ._fit import fit_traced, solver_program
 from ._lanes import lane_contract, lane_frames, lane_matmul, lane_point_jacobian, lane_root, point_dependence
+from ._sparsity import SparsePattern
 
 __all__ = ["JACOBIANS", "check_config", "fit_traced", "solver_program", "BatchConfig", "SparsePattern", "batch_lm",
            "batched_lm",
