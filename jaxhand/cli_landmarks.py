@@ -39,7 +39,7 @@ def register(sub) -> None:
                    help="the filmed hand (default: the file's handedness, else the model's); a hand of the other "
                         "side than the model's is fitted mirrored")
     p.add_argument("--model-hand", choices=("left", "right"), default=None,
-                   help="handedness of --model (default: that of the built-in hands, left)")
+                   help="handedness of --model (default: the model's own, else left as the built-in hands)")
     p.add_argument("--no-shape", action="store_true", help="keep the model's phalanx lengths and palm")
     p.add_argument("--smooth", type=float, default=20.0, help="smoothness weight, px per rad of change per frame")
     p.add_argument("--max-frames", type=int, default=None, help="fit only the first N frames")
@@ -145,7 +145,7 @@ def run_fit_landmarks(args) -> int:
         raise InputError(f"--camera {args.camera}: fit-landmarks takes one camera, the file has {len(cameras)}")
     size = _image_size(args, seq, cameras)
     camera = cameras[0] if cameras is not None else camera_from_fov(size, args.fov_deg)
-    model_hand = args.model_hand or BUILTIN_HANDEDNESS
+    model_hand = args.model_hand or (model.handedness if model.handedness in ("left", "right") else BUILTIN_HANDEDNESS)
     hand = seq.handedness if args.hand == "auto" else args.hand
     mirror = hand is not None and hand != model_hand
     cx = float((size[0] - 1) / 2)
@@ -207,7 +207,7 @@ def run_fit_landmarks(args) -> int:
 def _write_overlay(path, video, fit, camera, seq, px_fit, size, fps, mirror, cx, draw_view, project_pose, jnp):
     import cv2
 
-    from .viz import VideoWriter
+    from .viz import VideoWriter, draw_points
 
     cap = cv2.VideoCapture(video) if video else None
     if cap is not None and not cap.isOpened():
@@ -226,11 +226,8 @@ def _write_overlay(path, video, fit, camera, seq, px_fit, size, fps, mirror, cx,
             if mirror:
                 view = _mirror_view(view, cx)
             draw_view(img, view, (255, 160, 0), outline=True, thickness=2)
-            for p in seq.px[t]:
-                if np.all(np.isfinite(p)):
-                    cv2.circle(img, (int(round(p[0])), int(round(p[1]))), 4, (0, 255, 0), -1, cv2.LINE_AA)
-            for p in px_fit[t]:
-                cv2.circle(img, (int(round(p[0])), int(round(p[1]))), 3, (0, 0, 255), -1, cv2.LINE_AA)
+            draw_points(img, seq.px[t], (0, 255, 0), 4)
+            draw_points(img, px_fit[t], (0, 0, 255), 3)
             cv2.putText(img, f"frame {int(frame)}", (10, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.8, (255, 255, 255), 2)
             vw.write(img)
     if cap is not None:

@@ -138,3 +138,15 @@ def test_fit_landmarks_command_on_the_real_video(tmp_path):
     from jaxhand import load_model
 
     assert load_model(tmp_path / "hand.toml").name == "hand27_calibrated"
+
+
+@pytest.mark.slow
+def test_fit_landmarks_reads_the_model_handedness(tmp_path):
+    # the video shows a right hand: hand27_right fits it as it is, hand27 (left) mirrored
+    for model, mirrored in (("hand27_right", False), ("hand27", True)):
+        out = tmp_path / model
+        assert main(["fit-landmarks", str(REAL), "--model", model, "--out", str(out), "--max-frames", "2",
+                     "--steps", "10"]) == 0
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["model_hand"] == ("right" if model.endswith("right") else "left")
+        assert summary["mirrored"] is mirrored

@@ -1,4 +1,6 @@
 import cv2
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from helpers import fit_camera
@@ -40,3 +42,15 @@ def test_video_writer_round_trip(tmp_path):
     cap.release()
     with pytest.raises(jh.InputError, match="suffix must be .mp4 or .avi"):
         VideoWriter(tmp_path / "o.gif", 10, (32, 24))
+
+
+def test_draw_view_skips_points_it_cannot_draw():
+    # a link end at a perspective camera's plane projects to huge or non-finite pixels
+    m = jh.builtin_model("two_fingers")
+    cam = fit_camera(m)
+    view = jh.project_pose(m, cam, np.zeros(m.n_q))
+    far = view.link_end_px.at[0].set(jnp.array([3e9, jnp.nan]))
+    w, h = cam.size
+    image = draw_view(np.zeros((h, w, 3), np.uint8), eqx.tree_at(lambda v: v.link_end_px, view, far))
+    clean = draw_view(np.zeros((h, w, 3), np.uint8), view)
+    assert image.any() and image.sum() < clean.sum()   # the other links drawn, the bad one left out

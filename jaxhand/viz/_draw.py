@@ -9,13 +9,22 @@ from ..camera import Camera
 from ..kinematics import View, project_pose
 from ..model import Model
 
-__all__ = ["draw_view", "sketch_model"]
+__all__ = ["draw_view", "draw_points", "sketch_model"]
 
 _SHIFT = 4  # sub-pixel drawing: OpenCV takes fixed-point coordinates with 4 fractional bits
 
 
+#: pixels beyond this (a point near a perspective camera's plane) or not finite are not drawn:
+#: OpenCV's fixed-point coordinates are 32-bit
+_MAX_PX = 1e6
+
+
 def _pt(p) -> tuple[int, int]:
     return (int(round(p[0] * (1 << _SHIFT))), int(round(p[1] * (1 << _SHIFT))))
+
+
+def _drawable(*points) -> bool:
+    return all(bool(np.all(np.isfinite(p)) and np.all(np.abs(p) < _MAX_PX)) for p in points)
 
 
 def draw_view(image: np.ndarray, view: View, color=(0, 0, 255), *, outline: bool = False, thickness: int = 1,
@@ -33,6 +42,8 @@ def draw_view(image: np.ndarray, view: View, color=(0, 0, 255), *, outline: bool
     s, e = np.asarray(view.link_start_px), np.asarray(view.link_end_px)
     r = np.asarray(view.link_radius_px)
     for k in range(len(s)):  # drawing API is per primitive; a few dozen links per frame
+        if not _drawable(s[k], e[k], r[k]):
+            continue
         cv2.line(image, _pt(s[k]), _pt(e[k]), color, thickness, cv2.LINE_AA, _SHIFT)
         if outline:
             d = e[k] - s[k]
@@ -45,7 +56,18 @@ def draw_view(image: np.ndarray, view: View, color=(0, 0, 255), *, outline: bool
             cv2.circle(image, _pt(s[k]), 2 << _SHIFT, color, 1, cv2.LINE_AA, _SHIFT)
     if joints:
         for t in np.asarray(view.tips_px):
+            if not _drawable(t):
+                continue
             cv2.circle(image, _pt(t), 3 << _SHIFT, color, -1, cv2.LINE_AA, _SHIFT)
+    return image
+
+
+def draw_points(image: np.ndarray, px, color=(0, 255, 0), radius: int = 3) -> np.ndarray:
+    """Filled dots at the (n, 2) pixels ``px`` (in place; also returned), skipping missing (NaN)
+    and undrawable points."""
+    for p in np.asarray(px, float).reshape(-1, 2):
+        if _drawable(p):
+            cv2.circle(image, _pt(p), radius << _SHIFT, color, -1, cv2.LINE_AA, _SHIFT)
     return image
 
 
