@@ -27,7 +27,7 @@ from jaxhand.track import (
 )
 
 DEVSET = Path(__file__).resolve().parent.parent / "data" / "mujoco"
-AUTO = ImageConfig(score=ScoreSection(foreground="auto"))   # the default, spelled out
+AUTO = ImageConfig(score=ScoreSection(foreground="auto"))
 
 
 @pytest.fixture(scope="module")
@@ -135,10 +135,10 @@ def test_a_blank_frame_loses_the_frame_the_residuals_would_keep(opposition):
 
 
 def test_default_behaviour_without_an_image_score(opposition):
-    """The image score is on by default; foreground "none" scores nothing, and a front end
+    """The image score is off by default (foreground "none" scores nothing), and a front end
     without a score leaves the residual rule's confidence and loss flag as they are."""
     seq, m = opposition, opposition.model
-    assert ImageConfig().score == AUTO.score
+    assert ImageConfig().score == ScoreSection(foreground="none")
     off = ImageConfig(score=ScoreSection(foreground="none"))
     assert ImageFrontEnd(m, seq.cameras, off).score([_image(seq, 0)], seq.truth.q[:1], None) is None
     tracker = Tracker(m, seq.cameras, ExactFrontEnd(m, seq.cameras, seq.truth.q[:3]), TrackConfig(), dt_s=1 / 30)
@@ -208,7 +208,7 @@ def test_the_score_loses_a_drifting_track_on_jaxhands_own_renders():
     seq = make_preset("two_finger_occlusion", frames=80)
     images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras]
               for q in seq.q[:8]]
-    fe = ImageFrontEnd(seq.model, seq.cameras, ImageConfig(method="wssd"))
+    fe = ImageFrontEnd(seq.model, seq.cameras, ImageConfig(method="wssd", score=AUTO.score))
     tracker = Tracker(seq.model, seq.cameras, fe, TrackConfig(), dt_s=float(seq.times_s[1] - seq.times_s[0]))
     state, reps = tracker.init(seq.q[0]), []
     for k in range(8):

@@ -35,10 +35,11 @@ class ScoreSection:
     background; give a background image instead.
 
     Attributes:
-        foreground: "auto" (the default: on the dev set's held-out runs the score marks bad
-            frames the residuals miss, benchmarks/README.md), "threshold", "background" (needs
-            ``background_image``), "skin", or "none": no image score (the tracker judges frames
-            by their residuals alone).
+        foreground: "auto" (skin on colour, a threshold on grey), "threshold", "background"
+            (needs ``background_image``), "skin", or "none" (the default): no image score, the
+            tracker judges frames by their residuals alone. Off by default: a frame lost by the
+            score is held, and without recovery that costs jaxhand's own experiments more than the
+            better loss flag gains (benchmarks/README.md).
         threshold_method: :class:`ThresholdForeground` method ("triangle", "otsu", "fixed").
         threshold: the grey level of the "fixed" method (0..255).
         background_image: path of an image of the empty scene, for "background".
@@ -48,7 +49,7 @@ class ScoreSection:
         silhouette: how a silhouette is compared with the frame (:class:`ScoreConfig`).
     """
 
-    foreground: str = "auto"
+    foreground: str = "none"
     threshold_method: str = "triangle"
     threshold: float = 10.0
     background_image: str = ""
