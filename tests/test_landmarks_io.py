@@ -1,5 +1,6 @@
 """Landmark files (MediaPipe JSON, plain CSV and JSON), their error paths, and the commands."""
 
+import importlib.util
 import json
 from pathlib import Path
 
@@ -103,13 +104,8 @@ def test_mirror_x_is_an_involution():
     np.testing.assert_array_equal(mirror_x(mirror_x(px, 10.0), 10.0), px)
 
 
+@pytest.mark.skipif(importlib.util.find_spec("mediapipe") is not None, reason="mediapipe is installed here")
 def test_landmarks_command_without_mediapipe_says_how_to_get_it(tmp_path, capsys):
-    pytest.importorskip("cv2")
-    try:
-        import mediapipe  # noqa: F401
-        pytest.skip("mediapipe is installed here")
-    except ImportError:
-        pass
     video = REAL.with_suffix("").with_suffix(".mp4")
     assert main(["landmarks", str(video), "-o", str(tmp_path / "x.json")]) == 2
     err = capsys.readouterr().err.strip()
