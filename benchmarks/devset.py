@@ -50,6 +50,12 @@ SETTINGS = {
     "hyp8+carry": {"hypotheses": {"flips": 4, "last_solve": True, "carry": 2}},
     # 4 starts, and 8 more around the last good pose after a lost frame (item 7)
     "hyp4+recover": {"hypotheses": {"flips": 2, "last_solve": True, "recover": 8}},
+    # the silhouette as residuals of the solve (ImageConfig.silhouette_term)
+    "silhouette": {"image": {"silhouette_term": {"weight": 0.5}}},
+    # ... and judging 6 starts (4 flips of 40 deg, the last solve), the solve reported, no hold
+    "silhouette+hyp6": {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False},
+                        "filter": {"report_solve": True},
+                        "hypotheses": {"flips": 4, "flip_deg": 40.0, "last_solve": True}},
 }
 
 

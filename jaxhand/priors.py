@@ -9,11 +9,16 @@ of 0 turns a prior off without changing any shape.
 - :class:`DipPipCoupling`: ``r_f = w (q_dip - ratio * q_pip)`` per finger (the DIP joint flexes
   about 2/3 as much as the PIP in natural motion; the ratio is a common anatomical approximation,
   not a constraint of the model).
+- :class:`AbstractTerm`: a frame's extra solve term (landmarks, the silhouette), unbound: arrays
+  only, bound to a model and rig inside the compiled frame program.
 - :class:`SoftLimits`: zero while an entry lies inside its limits widened by ``margin``, growing
   linearly beyond (so its cost grows quadratically): ``r_i = w (relu(q_i - hi_i - m) - relu(lo_i - m - q_i))``.
 """
 
 from __future__ import annotations
+
+import abc
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -23,11 +28,29 @@ from jaxtyping import Array, ArrayLike, Float
 from ._errors import InputError
 from .model import Model
 
-__all__ = ["DipPipCoupling", "SoftLimits", "TemporalPrior", "dip_pip_coupling", "soft_limits", "temporal_prior",
+__all__ = ["AbstractTerm", "DipPipCoupling", "SoftLimits", "TemporalPrior", "dip_pip_coupling", "soft_limits", "temporal_prior",
            "stack_priors", "temporal_weight", "information_weight"]
 
 #: Default DIP/PIP flexion ratio (DIP about 2/3 of PIP).
 DIP_PIP_RATIO = 2.0 / 3.0
+
+
+class AbstractTerm(eqx.Module):
+    """One frame's extra solve term, unbound: its numbers only (traced, fixed shapes), so every
+    frame reuses one compiled program. :meth:`bind` gives a prior ``prior(q) -> residuals``
+    stacked under the image residuals. A ``judged`` term is a measurement of the image: the
+    hypotheses' merit includes its :meth:`merit`; a term that is not judged (e.g. a detector's
+    landmarks) only pulls the solve."""
+
+    judged: ClassVar[bool] = False
+
+    @abc.abstractmethod
+    def bind(self, model: Model, rig: tuple):
+        """The prior of this term on ``model`` seen by the cameras of ``rig`` (traceable)."""
+
+    def merit(self, model: Model, rig: tuple, q) -> Float[Array, ""]:
+        """How well the pose ``q`` agrees with this term's measurement, in (0, 1] (1 when not judged)."""
+        return jnp.ones((), jnp.asarray(q).dtype)
 
 
 class DipPipCoupling(eqx.Module):

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 
 from .._errors import InputError
-from ..score import ScoreSection
+from ..score import ScoreSection, SilhouetteTermConfig
 
 __all__ = ["SamplerConfig", "SearchConfig", "VisibilityConfig", "LineConfig", "TipConfig", "RecentreConfig",
            "WidthConfig", "ImageConfig", "INTERPOLATIONS", "POLARITIES"]
@@ -374,6 +374,9 @@ class ImageConfig:
             turned.
         score: the global image score of :meth:`~jaxhand.ImageFrontEnd.score` (its foreground
             model; :class:`jaxhand.score.ScoreSection`).
+        silhouette_term: the silhouette as residuals of every solve and as a judge of the
+            hypotheses (:class:`jaxhand.score.SilhouetteTermConfig`; its foreground is chosen by
+            ``score``'s settings, "auto" when the score is off).
     """
 
     method: str = "wssd"
@@ -390,6 +393,7 @@ class ImageConfig:
     reacquire_deg: tuple[float, ...] = ()
     reacquire_min_visible: float = 0.9
     score: ScoreSection = ScoreSection()
+    silhouette_term: SilhouetteTermConfig = SilhouetteTermConfig()
 
     def __post_init__(self):
         from .searches import SEARCH_NAMES

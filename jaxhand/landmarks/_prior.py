@@ -17,6 +17,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .._errors import InputError
 from ..model import Model
+from ..priors import AbstractTerm
 from ._convention import POINT_NAMES, landmark_map
 from ._residuals import LandmarkArgs, Landmarks, landmark_residuals
 
@@ -34,7 +35,7 @@ class LandmarkPrior(eqx.Module):
         return landmark_residuals(jnp.asarray(q), self.args)[: 2 * N_POINTS]
 
 
-class LandmarkTerm(eqx.Module):
+class LandmarkTerm(AbstractTerm):
     """One frame's landmarks in the rig's first camera, unbound (arrays only).
 
     Attributes:

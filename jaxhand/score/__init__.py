@@ -15,6 +15,8 @@ judge (here). The tracker, once per frame:
   :class:`BackgroundForeground` (a background image or the first frames) and
   :class:`SkinForeground` (colour video).
 - :class:`ScoreConfig`, :class:`ImageScore`, :func:`score_frame`: IoU, coverage and chamfer in [0, 1].
+- :class:`SilhouetteTermConfig`, :class:`SilhouetteTerm`, :func:`silhouette_term`: the silhouette
+  as residuals of the solve (``ImageConfig.silhouette_term``), and as a judge of hypotheses.
 - :class:`ConfidenceConfig`, :func:`frame_confidence`: the loss rule.
 - :class:`ScoreSection` (``ImageConfig.score``), :func:`foreground_for`: the image front end's
   settings, and the foreground model they choose for a frame.
@@ -46,10 +48,16 @@ from ._silhouette import capsule_outlines as capsule_outlines
 from ._silhouette import capsules_from_model as capsules_from_model
 from ._silhouette import capsules_from_model_batch as capsules_from_model_batch
 from ._silhouette import rasterize as rasterize
+from ._term import SilhouettePrior as SilhouettePrior
+from ._term import SilhouetteTerm as SilhouetteTerm
+from ._term import SilhouetteTermConfig as SilhouetteTermConfig
+from ._term import pill_images as pill_images
+from ._term import silhouette_term as silhouette_term
 
 __all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsules_from_model",
            "capsules_from_model_batch", "capsule_outlines",
            "rasterize", "AbstractForeground", "ThresholdForeground", "BackgroundForeground", "SkinForeground",
            "as_grey", "ScoreConfig", "ImageEvidence", "ImageScore", "image_evidence", "model_contour",
            "score_silhouette", "score_frame", "score_poses", "ConfidenceConfig", "frame_confidence", "FOREGROUNDS",
-           "ScoreSection", "foreground_for"]
+           "ScoreSection", "foreground_for", "SilhouetteTermConfig", "SilhouetteTerm", "SilhouettePrior",
+           "silhouette_term", "pill_images"]

@@ -27,6 +27,7 @@ from ..score import (
     image_evidence,
     rasterize,
     score_silhouette,
+    silhouette_term,
 )
 
 __all__ = ["AbstractFrontEnd", "FrontEndDiagnostics", "FrontEndResult", "ImageFrontEnd", "ExactFrontEnd"]
@@ -49,11 +50,14 @@ class FrontEndDiagnostics:
 
 @dataclasses.dataclass(frozen=True)
 class FrontEndResult:
-    """One extraction: the features (one per camera), the front end's next state, diagnostics."""
+    """One extraction: the features (one per camera), the front end's next state, diagnostics,
+    and the frame's extra measured solve terms (:class:`jaxhand.priors.AbstractTerm`, e.g. the
+    silhouette term), which the tracker adds to every solve of the frame."""
 
     features: tuple[Features, ...]
     state: Any
     diagnostics: FrontEndDiagnostics = FrontEndDiagnostics()
+    terms: tuple = ()
 
 
 class AbstractFrontEnd(abc.ABC):
@@ -94,7 +98,8 @@ class ImageFrontEnd(AbstractFrontEnd):
     once. :meth:`refresh` re-estimates the widths and re-takes the templates at the solved pose
     (thesis §4.3.1: templates come from unoccluded views); a search that keeps no templates with
     no width estimate returns the state untouched. :meth:`score` scores poses with
-    ``config.score`` (None when its foreground is "none").
+    ``config.score`` (None when its foreground is "none"). With ``config.silhouette_term`` on,
+    every extraction also returns the frame's silhouette terms, one per camera.
     """
 
     reextracts: ClassVar[bool] = True
@@ -104,6 +109,7 @@ class ImageFrontEnd(AbstractFrontEnd):
         self.config = ImageConfig() if config is None else config
         self._cams = tuple(camera_numbers(c) for c in self.cameras) if self.config.score.enabled else ()
         self._evidence: tuple[tuple[bytes, ...], tuple] | None = None   # the last frame's, by content
+        self._terms: tuple[int, tuple] | None = None   # the last frame's silhouette terms, by frame number
 
     def extract(self, images, q_start, state: ImageState | None, frame: int) -> FrontEndResult:
         q = np.asarray(q_start)
@@ -113,7 +119,20 @@ class ImageFrontEnd(AbstractFrontEnd):
         features, diag = extract_features(images, self.model, self.cameras, q, self.config, state)
         timings = dict(diag.timings_s) if diag.timings_s else {}
         return FrontEndResult(tuple(features), diag.state,
-                              FrontEndDiagnostics(windows=WindowOutlines(diag), timings_s=timings, method=diag.method))
+                              FrontEndDiagnostics(windows=WindowOutlines(diag), timings_s=timings, method=diag.method),
+                              self._silhouette_terms(images, frame))
+
+    def _silhouette_terms(self, images, frame: int) -> tuple:
+        config = self.config.silhouette_term
+        if not config.enabled:
+            return ()
+        if self._terms is None or self._terms[0] != frame:
+            section = self.config.score
+            if not section.enabled:
+                section = dataclasses.replace(section, foreground="auto")
+            self._terms = (frame, tuple(silhouette_term(im, foreground_for(section, im), c, config)
+                                        for c, im in enumerate(images)))
+        return self._terms[1]
 
     def refresh(self, images, q, state: ImageState | None) -> ImageState | None:
         q = np.asarray(q)

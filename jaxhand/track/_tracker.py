@@ -245,11 +245,12 @@ class Tracker:
             fe_state = extracted.state
             t1 = time.perf_counter()
             feats = self._feature_arrays(extracted.features)
+            frame_terms = tuple(extracted.terms) + tuple(terms)
             if r == 0 and extras is not None:
-                picked = self._solve_hypotheses(feats, ghk, state, extras, images, fe_state, terms)
+                picked = self._solve_hypotheses(feats, ghk, state, extras, images, fe_state, frame_terms)
                 (q_meas, filtered, scalars), ghk_next = picked.results
             else:
-                (q_meas, filtered, scalars), ghk_next = self._program(feats, ghk, state.q_last, q_start, terms)
+                (q_meas, filtered, scalars), ghk_next = self._program(feats, ghk, state.q_last, q_start, frame_terms)
             q_pred_host, q_meas, filtered, scalars = jax.device_get((q_pred, q_meas, filtered, scalars))  # one fetch
             out = dict(zip(SCALARS, scalars.tolist()))
             t2 = time.perf_counter()

@@ -1,0 +1,244 @@
+"""The silhouette as residuals of the solve: the whole model against the whole foreground.
+
+The edge features constrain where a link's sides are but hardly how long it looks, so a finger
+that flexes towards or away from the camera drifts while its edge residuals stay small. This
+term compares the model's silhouette (every pill, occluders included) with the frame's
+foreground in both directions, as a chamfer of signed distances (no visibility reasoning is
+needed: the silhouette of a union is the union of the silhouettes):
+
+- **covered**: each point of the foreground's outline should lie on the model's outline:
+  ``r = rho(min_i d_i(x))`` with ``d_i`` the signed distance (px) from the image point ``x`` to
+  pill ``i``'s image (a smooth minimum over pills);
+- **inside**: each point on the outline of each pill's image should lie inside the foreground:
+  ``r = rho(max(0, D(p)))`` with ``D`` the foreground's signed distance map (px, positive
+  outside), read bilinearly.
+
+``rho(d) = d / (1 + (d/s)^2)^(1/4)`` (a pseudo-Huber residual: its square grows like ``|d| s``
+far out, so a few wrong foreground pixels cannot dominate). A pill's image is taken as the
+tapered 2-D pill between the images of its end spheres (their radii from the camera's local
+scale at each end): exact for orthographic cameras, within a small fraction of a pixel for a
+finger some hundreds of millimetres from a pinhole camera.
+
+The host part (:func:`silhouette_term`) builds a frame's numbers once per camera (the distance
+map and outline samples, fixed shapes, so one compiled program serves every frame); the traced
+part (:class:`SilhouettePrior`) is a pose prior in the sense of :mod:`jaxhand.priors`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.scipy.ndimage import map_coordinates
+from jaxtyping import Array, ArrayLike, Bool, Float
+
+from .._errors import InputError
+from ..kinematics import all_pills, pose
+from ..model import Model
+from ..priors import AbstractTerm
+from ._foreground import AbstractForeground
+
+__all__ = ["SilhouetteTermConfig", "SilhouetteTerm", "SilhouettePrior", "silhouette_term", "pill_images"]
+
+
+@dataclasses.dataclass(frozen=True)
+class SilhouetteTermConfig:
+    """The silhouette term of the solve (``ImageConfig.silhouette_term``; host values).
+
+    Attributes:
+        weight: square-root weight of each residual (a residual of 1 px counts as ``weight`` px
+            of edge residual); 0 turns the term off.
+        scale_px: the pseudo-Huber scale ``s`` (px): distances beyond it count less than
+            quadratically.
+        contour_points: how many points of the foreground's outline are compared (spread evenly
+            along it; a fixed number, so the compiled solve is reused).
+        outline_fractions: where along each pill its two sides are sampled (0: start, 1: end);
+            the two end caps are always sampled.
+        min_share, max_share: the term is skipped on a frame whose foreground covers less or more
+            than this share of the image (nothing to compare, or the foreground model failed, as
+            a threshold does on a bright, cluttered background).
+        merit_rms_px: the hypotheses weigh a candidate by ``1 / (1 + (e / merit_rms_px)^2)`` of
+            its robust RMS silhouette distance ``e`` (px), besides its edge residuals.
+    """
+
+    weight: float = 0.0
+    scale_px: float = 5.0
+    contour_points: int = 128
+    outline_fractions: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)
+    min_share: float = 0.002
+    max_share: float = 0.6
+    merit_rms_px: float = 2.0
+
+    def __post_init__(self):
+        def need(cond, field, msg):
+            if not cond:
+                raise InputError(f"silhouette_term.{field}: {msg}")
+
+        need(self.weight >= 0, "weight", f"need >= 0 (0: off), got {self.weight!r}")
+        need(self.scale_px > 0, "scale_px", f"need > 0 px, got {self.scale_px!r}")
+        need(isinstance(self.contour_points, int) and self.contour_points >= 8, "contour_points",
+             f"need an int >= 8, got {self.contour_points!r}")
+        need(len(self.outline_fractions) >= 1 and all(0 <= f <= 1 for f in self.outline_fractions),
+             "outline_fractions", f"need fractions in [0, 1], got {self.outline_fractions!r}")
+        need(0 <= self.min_share < self.max_share <= 1, "min_share/max_share",
+             f"need 0 <= min_share < max_share <= 1, got {self.min_share!r}, {self.max_share!r}")
+        need(self.merit_rms_px > 0, "merit_rms_px", f"need > 0 px, got {self.merit_rms_px!r}")
+
+    @property
+    def enabled(self) -> bool:
+        return self.weight > 0
+
+
+def _rho(d, scale):
+    return d / (1.0 + (d / scale) ** 2) ** 0.25
+
+
+def pill_images(model: Model, camera, q: Float[ArrayLike, " nq"]) -> tuple[Array, Array, Array, Array]:
+    """Every pill's image (links, then occluders): start and end pixels (pills, 2) and the
+    radii (px) of its end spheres there (pills,), from the camera's local scale at each end."""
+    pills = all_pills(model, pose(model, q))
+    a, _ = camera.project(pills.start)
+    b, _ = camera.project(pills.end)
+
+    def scale(p):
+        J = camera.pixel_jacobian(p)
+        return jnp.abs(jnp.linalg.det(J @ jnp.swapaxes(J, -1, -2))) ** 0.25
+
+    return a, b, pills.radius_mm * scale(pills.start), pills.radius_mm * scale(pills.end)
+
+
+def pill_distances(points, a, b, ra, rb) -> Float[Array, "n pills"]:
+    """Signed distance (px, negative inside) from each point (n, 2) to each tapered 2-D pill."""
+    ab = b - a
+    length2 = jnp.sum(ab * ab, -1) + 1e-9          # Guard: a pill seen end-on
+    ap = points[:, None, :] - a[None]
+    t = jnp.clip(jnp.sum(ap * ab[None], -1) / length2[None], 0.0, 1.0)
+    closest = a[None] + t[..., None] * ab[None]
+    d = jnp.sqrt(jnp.sum((points[:, None, :] - closest) ** 2, -1) + 1e-9)   # Guard: sqrt'(0)
+    return d - (ra[None] + t * (rb - ra)[None])
+
+
+def pill_outlines(a, b, ra, rb, fractions) -> Float[Array, "m 2"]:
+    """Points on each pill's image outline: both sides at ``fractions`` and both cap ends."""
+    u = b - a
+    u = u / jnp.sqrt(jnp.sum(u * u, -1) + 1e-9)[:, None]
+    n = jnp.stack([-u[:, 1], u[:, 0]], -1)
+    f = jnp.asarray(fractions, a.dtype)
+    centre = a[:, None] + f[None, :, None] * (b - a)[:, None]
+    r = (ra[:, None] + f[None] * (rb - ra)[:, None])[..., None]
+    pts = jnp.concatenate([centre + r * n[:, None], centre - r * n[:, None], (a - ra[:, None] * u)[:, None],
+                           (b + rb[:, None] * u)[:, None]], 1)
+    return pts.reshape(-1, 2)
+
+
+class SilhouettePrior(eqx.Module):
+    """A frame's silhouette term bound to a model and camera: ``prior(q) -> residuals`` (px times
+    the weight): the covered residuals of the outline points, then the inside residuals of the
+    pills' outline points."""
+
+    model: Model
+    camera: eqx.Module
+    term: SilhouetteTerm
+
+    def distances(self, q) -> tuple[Array, Array, Array, Array]:
+        """The unweighted signed distances (px) and their masks: outline-to-model, model-to-foreground."""
+        t = self.term
+        a, b, ra, rb = pill_images(self.model, self.camera, q)
+        d = pill_distances(t.contour, a, b, ra, rb)
+        covered = -jax.scipy.special.logsumexp(-d, axis=1)     # a smooth minimum over pills (1 px)
+        pts = pill_outlines(a, b, ra, rb, t.fractions)
+        height, width = t.sdf.shape
+        in_image = (pts[:, 0] >= 0) & (pts[:, 0] <= width - 1) & (pts[:, 1] >= 0) & (pts[:, 1] <= height - 1)
+        outside = jax.nn.relu(map_coordinates(t.sdf, [pts[:, 1], pts[:, 0]], order=1, mode="nearest"))
+        return covered, t.contour_valid, outside, in_image & t.active
+
+    def __call__(self, q: Float[ArrayLike, " nq"]) -> Float[Array, " r"]:
+        covered, c_ok, outside, o_ok = self.distances(q)
+        s, w = self.term.scale_px, self.term.weight
+        return jnp.concatenate([w * jnp.where(c_ok, _rho(covered, s), 0.0), w * jnp.where(o_ok, _rho(outside, s), 0.0)])
+
+    def rms_px(self, q) -> Float[Array, ""]:
+        """The robust RMS distance (px) of the valid residuals (0 when there are none)."""
+        covered, c_ok, outside, o_ok = self.distances(q)
+        s = self.term.scale_px
+        total = jnp.sum(jnp.where(c_ok, _rho(covered, s) ** 2, 0.0)) + jnp.sum(jnp.where(o_ok, _rho(outside, s) ** 2, 0.0))
+        count = jnp.sum(c_ok) + jnp.sum(o_ok)
+        return jnp.sqrt(total / jnp.maximum(count, 1))   # Guard: an inactive term gives 0, not NaN
+
+
+class SilhouetteTerm(AbstractTerm):
+    """One camera's foreground for one frame, unbound (arrays only, fixed shapes).
+
+    Attributes:
+        camera: which camera of the rig (static).
+        fractions: :attr:`SilhouetteTermConfig.outline_fractions` (static).
+        sdf: (H, W) signed distance to the foreground's outline (px, positive outside).
+        contour: (N, 2) points (x, y) on the foreground's outline.
+        contour_valid: (N,) which of them are real (the rest pad to N).
+        active: whether the frame's foreground was usable (else the term is all zeros).
+        weight, scale_px, merit_rms_px: :class:`SilhouetteTermConfig`'s numbers (traced).
+    """
+
+    judged = True
+    camera: int = eqx.field(static=True)
+    fractions: tuple[float, ...] = eqx.field(static=True)
+    sdf: Float[Array, "H W"]
+    contour: Float[Array, "n 2"]
+    contour_valid: Bool[Array, " n"]
+    active: Bool[Array, ""]
+    weight: Float[Array, ""]
+    scale_px: Float[Array, ""]
+    merit_rms_px: Float[Array, ""]
+
+    def bind(self, model: Model, rig: tuple) -> SilhouettePrior:
+        return SilhouettePrior(model=model, camera=rig[self.camera], term=self)
+
+    def merit(self, model: Model, rig: tuple, q) -> Float[Array, ""]:
+        e = self.bind(model, rig).rms_px(q)
+        return 1.0 / (1.0 + (e / self.merit_rms_px) ** 2)
+
+
+def _outline_points(mask: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` points spread evenly along the mask's outlines (holes included), leaving out the
+    image's border rows and columns (a forearm leaving the image is not an outline)."""
+    contours, _ = cv2.findContours(mask, cv2.RETR_LIST, cv2.CHAIN_APPROX_NONE)
+    pts = np.concatenate([c.reshape(-1, 2) for c in contours]).astype(float) if contours else np.zeros((0, 2))
+    h, w = mask.shape
+    pts = pts[(pts[:, 0] > 0) & (pts[:, 0] < w - 1) & (pts[:, 1] > 0) & (pts[:, 1] < h - 1)]
+    out, valid = np.zeros((n, 2)), np.zeros(n, bool)
+    if len(pts):
+        take = np.unique(np.linspace(0, len(pts) - 1, min(n, len(pts))).round().astype(int))
+        out[: len(take)], valid[: len(take)] = pts[take], True
+    return out, valid
+
+
+def silhouette_term(image, foreground: AbstractForeground, camera: int, config: SilhouetteTermConfig,
+                    dtype=None) -> SilhouetteTerm:
+    """A frame's :class:`SilhouetteTerm` for camera ``camera`` of the rig from its image and
+    foreground model (inactive when the foreground covers less than ``config.min_share`` or
+    more than ``config.max_share`` of the image)."""
+    mask = foreground.mask(image).astype(np.uint8)
+    share = float(mask.mean())
+    active = config.min_share <= share <= config.max_share
+    if active:
+        outside = cv2.distanceTransform(1 - mask, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+        inside = cv2.distanceTransform(mask, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+        # the outline lies half a pixel beyond the last foreground pixel centre
+        sdf = np.where(mask > 0, 0.5 - inside, outside - 0.5)
+        contour, valid = _outline_points(mask * 255, config.contour_points)
+        gy, gx = np.gradient(sdf)   # half a pixel outwards, onto the outline itself
+        rows, cols = contour[:, 1].astype(int), contour[:, 0].astype(int)
+        g = np.stack([gx[rows, cols], gy[rows, cols]], -1)
+        contour = contour + 0.5 * g / np.maximum(np.linalg.norm(g, axis=-1, keepdims=True), 1e-9)
+    else:
+        sdf, contour, valid = np.zeros(mask.shape), np.zeros((config.contour_points, 2)), np.zeros(config.contour_points, bool)
+    dtype = jnp.asarray(0.0).dtype if dtype is None else dtype
+    return SilhouetteTerm(camera=camera, fractions=tuple(float(f) for f in config.outline_fractions),
+                          sdf=jnp.asarray(sdf, dtype), contour=jnp.asarray(contour, dtype),
+                          contour_valid=jnp.asarray(valid), active=jnp.asarray(active),
+                          weight=jnp.asarray(config.weight, dtype), scale_px=jnp.asarray(config.scale_px, dtype),
+                          merit_rms_px=jnp.asarray(config.merit_rms_px, dtype))
