@@ -28,7 +28,8 @@ from jaxtyping import Array, ArrayLike, Float
 from ._errors import InputError
 from .model import Model
 
-__all__ = ["AbstractTerm", "DipPipCoupling", "SoftLimits", "TemporalPrior", "dip_pip_coupling", "soft_limits", "temporal_prior",
+__all__ = ["AbstractTerm",
+           "DipPipCoupling", "SoftLimits", "TemporalPrior", "dip_pip_coupling", "soft_limits", "temporal_prior",
            "stack_priors", "temporal_weight", "information_weight"]
 
 #: Default DIP/PIP flexion ratio (DIP about 2/3 of PIP).

@@ -111,15 +111,42 @@ def pill_images(model: Model, camera, q: Float[ArrayLike, " nq"]) -> tuple[Array
     return a, b, pills.radius_mm * scale(pills.start), pills.radius_mm * scale(pills.end)
 
 
+def _pill_distance(p, a, b, ra, rb):
+    """Signed distance (px, negative inside) from the point ``p`` (2,) to one tapered 2-D pill."""
+    ab = b - a
+    t = jnp.clip(jnp.dot(p - a, ab) / (jnp.dot(ab, ab) + 1e-9), 0.0, 1.0)   # Guard: a pill seen end-on
+    e = p - (a + t * ab)
+    return jnp.sqrt(jnp.dot(e, e) + 1e-9) - (ra + t * (rb - ra))           # Guard: sqrt'(0)
+
+
+# every point against every pill, and its gradient in the pill's numbers
+_all_pairs = jax.vmap(jax.vmap(_pill_distance, (None, 0, 0, 0, 0)), (0, None, None, None, None))
+_all_grads = jax.vmap(jax.vmap(jax.grad(_pill_distance, argnums=(1, 2, 3, 4)), (None, 0, 0, 0, 0)),
+                      (0, None, None, None, None))
+
+
 def pill_distances(points, a, b, ra, rb) -> Float[Array, "n pills"]:
     """Signed distance (px, negative inside) from each point (n, 2) to each tapered 2-D pill."""
-    ab = b - a
-    length2 = jnp.sum(ab * ab, -1) + 1e-9          # Guard: a pill seen end-on
-    ap = points[:, None, :] - a[None]
-    t = jnp.clip(jnp.sum(ap * ab[None], -1) / length2[None], 0.0, 1.0)
-    closest = a[None] + t[..., None] * ab[None]
-    d = jnp.sqrt(jnp.sum((points[:, None, :] - closest) ** 2, -1) + 1e-9)   # Guard: sqrt'(0)
-    return d - (ra[None] + t * (rb - ra)[None])
+    return _all_pairs(points, a, b, ra, rb)
+
+
+@jax.custom_jvp
+def nearest_pill_distance(points, a, b, ra, rb) -> Float[Array, " n"]:
+    """A smooth minimum (1 px) over pills of :func:`pill_distances`: each point's signed distance
+    to the union of the pills. Its derivative is formed once per point and pill and then applied
+    to every tangent, so ``jax.jacfwd`` over many pose entries costs little more than one."""
+    return -jax.scipy.special.logsumexp(-pill_distances(points, a, b, ra, rb), axis=1)
+
+
+@nearest_pill_distance.defjvp
+def _nearest_jvp(primals, tangents):
+    points, a, b, ra, rb = primals
+    _, da, db, dra, drb = tangents
+    d = pill_distances(points, a, b, ra, rb)
+    share = jax.nn.softmax(-d, axis=1)                       # d(smooth min) / d d_ij
+    ga, gb, gra, grb = _all_grads(points, a, b, ra, rb)      # (n, pills, 2), (n, pills, 2), (n, pills), (n, pills)
+    dd = (jnp.einsum("npk,pk->np", ga, da) + jnp.einsum("npk,pk->np", gb, db) + gra * dra[None] + grb * drb[None])
+    return -jax.scipy.special.logsumexp(-d, axis=1), jnp.sum(share * dd, axis=1)
 
 
 def pill_outlines(a, b, ra, rb, fractions) -> Float[Array, "m 2"]:
@@ -148,8 +175,7 @@ class SilhouettePrior(eqx.Module):
         """The unweighted signed distances (px) and their masks: outline-to-model, model-to-foreground."""
         t = self.term
         a, b, ra, rb = pill_images(self.model, self.camera, q)
-        d = pill_distances(t.contour, a, b, ra, rb)
-        covered = -jax.scipy.special.logsumexp(-d, axis=1)     # a smooth minimum over pills (1 px)
+        covered = nearest_pill_distance(t.contour, a, b, ra, rb)
         pts = pill_outlines(a, b, ra, rb, t.fractions)
         height, width = t.sdf.shape
         in_image = (pts[:, 0] >= 0) & (pts[:, 0] <= width - 1) & (pts[:, 1] >= 0) & (pts[:, 1] <= height - 1)
@@ -159,15 +185,17 @@ class SilhouettePrior(eqx.Module):
     def __call__(self, q: Float[ArrayLike, " nq"]) -> Float[Array, " r"]:
         covered, c_ok, outside, o_ok = self.distances(q)
         s, w = self.term.scale_px, self.term.weight
-        return jnp.concatenate([w * jnp.where(c_ok, _rho(covered, s), 0.0), w * jnp.where(o_ok, _rho(outside, s), 0.0)])
+        return jnp.concatenate([w * jnp.where(c_ok, _rho(covered, s), 0.0),
+                                w * jnp.where(o_ok, _rho(outside, s), 0.0)])
 
     def rms_px(self, q) -> Float[Array, ""]:
         """The robust RMS distance (px) of the valid residuals (0 when there are none)."""
         covered, c_ok, outside, o_ok = self.distances(q)
         s = self.term.scale_px
-        total = jnp.sum(jnp.where(c_ok, _rho(covered, s) ** 2, 0.0)) + jnp.sum(jnp.where(o_ok, _rho(outside, s) ** 2, 0.0))
-        count = jnp.sum(c_ok) + jnp.sum(o_ok)
-        return jnp.sqrt(total / jnp.maximum(count, 1))   # Guard: an inactive term gives 0, not NaN
+        total = (jnp.sum(jnp.where(c_ok, _rho(covered, s) ** 2, 0.0))
+                 + jnp.sum(jnp.where(o_ok, _rho(outside, s) ** 2, 0.0)))
+        count = (jnp.sum(c_ok) + jnp.sum(o_ok)).astype(total.dtype)
+        return jnp.sqrt(total / jnp.maximum(count, 1.0))   # Guard: an inactive term gives 0, not NaN
 
 
 class SilhouetteTerm(AbstractTerm):
@@ -235,7 +263,8 @@ def silhouette_term(image, foreground: AbstractForeground, camera: int, config: 
         g = np.stack([gx[rows, cols], gy[rows, cols]], -1)
         contour = contour + 0.5 * g / np.maximum(np.linalg.norm(g, axis=-1, keepdims=True), 1e-9)
     else:
-        sdf, contour, valid = np.zeros(mask.shape), np.zeros((config.contour_points, 2)), np.zeros(config.contour_points, bool)
+        n = config.contour_points
+        sdf, contour, valid = np.zeros(mask.shape), np.zeros((n, 2)), np.zeros(n, bool)
     dtype = jnp.asarray(0.0).dtype if dtype is None else dtype
     return SilhouetteTerm(camera=camera, fractions=tuple(float(f) for f in config.outline_fractions),
                           sdf=jnp.asarray(sdf, dtype), contour=jnp.asarray(contour, dtype),

@@ -1,0 +1,124 @@
+"""The silhouette term (jaxhand.score._term): its residuals on dev-set frames at the truth and
+away from it, its Jacobian against finite differences, an inactive frame, its configuration,
+and the tracker carrying it (ImageConfig.silhouette_term)."""
+
+from pathlib import Path
+
+import cv2
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxhand as jh
+from jaxhand.image import ImageConfig
+from jaxhand.io import load_devset
+from jaxhand.kinematics import project_pose
+from jaxhand.score import SilhouetteTerm, SilhouetteTermConfig, ThresholdForeground, pill_images, silhouette_term
+from jaxhand.track import ImageFrontEnd, TrackConfig, Tracker
+
+DEVSET = Path(__file__).resolve().parent.parent / "data" / "mujoco"
+ON = SilhouetteTermConfig(weight=0.5)
+
+
+@pytest.fixture(scope="module")
+def open_close():
+    return load_devset(DEVSET / "open_close")
+
+
+def _frame(seq, k):
+    return cv2.imread(str(seq.image_paths[0][k]), cv2.IMREAD_GRAYSCALE)
+
+
+def _bound(seq, k, config=ON):
+    term = silhouette_term(_frame(seq, k), ThresholdForeground(), 0, config)
+    return term, term.bind(seq.model, tuple(seq.truth.cameras))
+
+
+def _q(seq, k, **deg):
+    q = np.array(seq.truth.q[k], float)
+    for name, d in deg.items():
+        q[seq.model.q_names.index(name)] += np.radians(d)
+    return jnp.asarray(q)
+
+
+def test_truth_fits_the_foreground_and_a_flexed_finger_does_not(open_close):
+    term, prior = _bound(open_close, 20)
+    assert bool(term.active) and int(term.contour_valid.sum()) == ON.contour_points
+    at_truth = float(prior.rms_px(_q(open_close, 20)))
+    off = float(prior.rms_px(_q(open_close, 20, index_mcp_flex=-30.0)))
+    assert at_truth < 0.8, at_truth          # the MuJoCo hand at its true pose: sub-pixel
+    assert off > 3 * at_truth and off > 1.5, (at_truth, off)
+    assert float(term.merit(open_close.model, tuple(open_close.truth.cameras), _q(open_close, 20))) > 0.85
+    r = prior(_q(open_close, 20))
+    n_outline = open_close.model.n_links + len(open_close.model.occluder_radius_mm)
+    assert r.shape == (ON.contour_points + n_outline * (2 * len(ON.outline_fractions) + 2),)
+
+
+def test_jacobian_matches_central_differences(open_close):
+    _, prior = _bound(open_close, 30)
+    q = _q(open_close, 30, little_pip=-7.0, index_mcp_abd=3.0)
+    J = np.asarray(eqx.filter_jit(lambda p, q: jax.jacfwd(p)(q))(prior, q))
+    f = eqx.filter_jit(lambda q: prior(q))
+    h = 1e-6
+    fd = np.stack([(np.asarray(f(q.at[i].add(h))) - np.asarray(f(q.at[i].add(-h)))) / (2 * h)
+                   for i in range(len(q))], 1)
+    assert np.all(np.isfinite(J))
+    np.testing.assert_allclose(J, fd, atol=2e-3 * np.abs(fd).max())
+
+
+def test_pill_radii_agree_with_the_views_mid_depth_radius(open_close):
+    m, cam = open_close.model, open_close.truth.cameras[0]
+    q = _q(open_close, 0)
+    a, b, ra, rb = (np.asarray(x) for x in pill_images(m, cam, q))
+    view = project_pose(m, cam, np.asarray(q))
+    np.testing.assert_allclose(a[: m.n_links], np.asarray(view.link_start_px), atol=1e-9)
+    np.testing.assert_allclose(0.5 * (ra + rb)[: m.n_links], np.asarray(view.link_radius_px), rtol=0.02)
+
+
+def test_an_empty_frame_gives_an_inactive_term(open_close):
+    blank = np.zeros_like(_frame(open_close, 0))
+    term = silhouette_term(blank, ThresholdForeground(), 0, ON)
+    assert not bool(term.active) and not bool(term.contour_valid.any())
+    prior = term.bind(open_close.model, tuple(open_close.truth.cameras))
+    q = _q(open_close, 0)
+    np.testing.assert_array_equal(np.asarray(prior(q)), 0.0)
+    assert float(prior.rms_px(q)) == 0.0
+    assert float(term.merit(open_close.model, tuple(open_close.truth.cameras), q)) == 1.0
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("weight", -1.0, "silhouette_term.weight: need >= 0"),
+    ("scale_px", 0.0, "silhouette_term.scale_px: need > 0 px"),
+    ("contour_points", 4, "silhouette_term.contour_points: need an int >= 8"),
+    ("outline_fractions", (0.5, 1.5), "silhouette_term.outline_fractions"),
+    ("max_share", 0.0, "silhouette_term.min_share/max_share"),
+])
+def test_bad_settings_are_named(field, value, message):
+    with pytest.raises(jh.InputError, match=message.replace(".", r"\.")):
+        SilhouetteTermConfig(**{field: value})
+
+
+def test_the_front_end_returns_one_term_per_camera_only_when_on(open_close):
+    m, cams = open_close.model, open_close.truth.cameras
+    images = [_frame(open_close, 0)]
+    off = ImageFrontEnd(m, cams).extract(images, np.asarray(open_close.truth.q[0]), None, 0)
+    assert off.terms == ()
+    on = ImageFrontEnd(m, cams, ImageConfig(silhouette_term=ON)).extract(images, np.asarray(open_close.truth.q[0]),
+                                                                          None, 0)
+    assert len(on.terms) == 1 and isinstance(on.terms[0], SilhouetteTerm) and on.terms[0].camera == 0
+
+
+def test_the_term_holds_a_finger_the_edges_lose(open_close):
+    """Frames 20-27 of open_close: the fingers curl away from the camera, where the edges alone
+    let the little finger settle at its hyper-extension limit (benchmarks/README.md)."""
+    m, cams = open_close.model, open_close.truth.cameras
+    errors = {}
+    for label, image in (("edges", ImageConfig()), ("silhouette", ImageConfig(silhouette_term=ON))):
+        tracker = Tracker(m, cams, ImageFrontEnd(m, cams, image), TrackConfig(image=image), dt_s=1 / 30)
+        state = tracker.init(np.asarray(open_close.truth.q[16]))
+        for k in range(17, 28):
+            state, rep = tracker.step(state, [_frame(open_close, k)], k)
+        errors[label] = np.degrees(np.abs(rep.q_filtered - np.asarray(open_close.truth.q[27]))).max()
+    assert errors["silhouette"] < 15.0 < errors["edges"], errors
