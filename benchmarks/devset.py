@@ -56,6 +56,13 @@ SETTINGS = {
     "silhouette+hyp6": {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False},
                         "filter": {"report_solve": True},
                         "hypotheses": {"flips": 4, "flip_deg": 40.0, "last_solve": True}},
+    # ... with 4 starts reflected across their folds instead of the flips
+    "silhouette+fold4": {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False},
+                         "filter": {"report_solve": True}, "hypotheses": {"folds": 4, "last_solve": True}},
+    # ... both
+    "silhouette+hyp6+fold4": {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False},
+                              "filter": {"report_solve": True},
+                              "hypotheses": {"flips": 4, "flip_deg": 40.0, "folds": 4, "last_solve": True}},
 }
 
 

@@ -189,14 +189,17 @@ def _count(value, where: str) -> None:
 class HypothesisConfig:
     """Several starts per frame, solved in one vectorised call, the best kept (thesis ch. 7, "a
     bank of filters"; :mod:`jaxhand.track._hypotheses`). All off by default: one solve from the
-    prediction, as the thesis does. The starts: the prediction, then ``flips``, ``last_solve``,
-    the carried runners-up, the caller's proposals and, after a lost frame, ``recover``.
+    prediction, as the thesis does. The starts: the prediction, then ``flips``, ``folds``,
+    ``last_solve``, the carried runners-up, the caller's proposals and, after a lost frame, ``recover``.
 
     Attributes:
         flips: static. Starts from the prediction with one of its most poorly observed joints
             (smallest image-Jacobian column at the prediction) pushed by +/- ``flip_deg``, in
             pairs, worst joint first.
         flip_deg: traced, deg. How far a flip start pushes its joint.
+        folds: static. Starts from the prediction with one hinge reflected across its fold (where
+            its link lies across the first camera's viewing ray), the hinges nearest their fold
+            first: the depth ambiguity of one view (``fold_starts`` in :mod:`jaxhand.track._hypotheses`).
         last_solve: static. Also start from the last frame's solve.
         carry: static. Runners-up carried to the next frame as extra starts (at most this many).
         carry_margin: host, in [0, 1]. A runner-up is carried when its merit is at least this
@@ -211,6 +214,7 @@ class HypothesisConfig:
 
     flips: int = 0
     flip_deg: float = 25.0
+    folds: int = 0
     last_solve: bool = False
     carry: int = 0
     carry_margin: float = 0.9
@@ -221,7 +225,7 @@ class HypothesisConfig:
     seed: int = 0
 
     def __post_init__(self):
-        for name in ("flips", "carry", "recover", "seed"):
+        for name in ("flips", "folds", "carry", "recover", "seed"):
             _count(getattr(self, name), f"hypotheses.{name}")
         _need(isinstance(self.last_solve, bool), "hypotheses.last_solve",
               f"expected true or false, got {self.last_solve!r}")
@@ -235,7 +239,7 @@ class HypothesisConfig:
     @property
     def enabled(self) -> bool:
         """Whether any start besides the prediction is configured (static)."""
-        return bool(self.flips or self.last_solve or self.carry or self.recover)
+        return bool(self.flips or self.folds or self.last_solve or self.carry or self.recover)
 
 
 @dataclasses.dataclass(frozen=True)

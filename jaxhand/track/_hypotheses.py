@@ -29,19 +29,20 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from .._errors import InputError
+from ..camera import Perspective
 from ..features import Features
 from ..filter import GHKState
-from ..kinematics import clip_q
+from ..kinematics import clip_q, pose
 from ..model import Model
 from ..residuals import ResidualArgs, feature_distances, residuals_and_jacobian
 from ._compiled import SCALARS, _Solved, _Static, features_ok, finish_frame, solve_frame, step_constants
 from ._config import HypothesisConfig, TrackConfig
 
-__all__ = ["HypothesisProgram", "flip_starts", "image_merit", "choose", "runners_up", "recovery_starts",
+__all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "image_merit", "choose", "runners_up", "recovery_starts",
            "extra_starts", "LABELS"]
 
 #: The kinds of start, as :attr:`StepReport.hypothesis` names the winner's.
-LABELS = ("prediction", "flip", "last_solve", "carried", "proposal", "recover")
+LABELS = ("prediction", "flip", "fold", "last_solve", "carried", "proposal", "recover")
 
 
 def _flippable(model: Model) -> np.ndarray:
@@ -66,6 +67,62 @@ def flip_starts(model: Model, rig: tuple, feats: tuple, q_pred, n: int, flip_rad
     starts = jnp.broadcast_to(q_pred, (n,) + q_pred.shape)
     starts = starts.at[np.arange(n), order[pick]].add(sign * flip_rad)
     return jax.vmap(lambda q: clip_q(model, q))(starts)
+
+
+def _fold_joints(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For every flippable hinge: its q entry, its frame, and the first link it moves (the link
+    of its own frame, else of its nearest descendant frame)."""
+    children = {f: [c for c, p in enumerate(model.parents) if p == f] for f in range(len(model.parents))}
+    rows = []
+    for i in _flippable(model):
+        frame = model.q_index.index(i)
+        if model.joint_kinds[frame] != "revolute":
+            continue
+        queue = [frame]
+        while queue:
+            f = queue.pop(0)
+            if f in model.link_frame:
+                rows.append((i, frame, model.link_frame.index(f)))
+                break
+            queue.extend(children[f])
+    return tuple(np.array(c, int) for c in zip(*rows)) if rows else (np.zeros(0, int),) * 3
+
+
+def fold_starts(model: Model, camera, q_pred, n: int) -> Float[Array, "n nq"]:
+    """``n`` starts from ``q_pred``, each with one hinge reflected across its fold: the angle at
+    which the link it moves lies across the viewing ray. Both sides of the fold show the link
+    at nearly the same place in the image with its depth reversed (exactly so for an
+    orthographic camera and a hinge axis across the ray): the ambiguity a single view leaves
+    (Sminchisescu and Triggs 2003, kinematic jumps). The hinges closest to their fold go first;
+    a hinge whose link never lies across the ray gives the prediction itself."""
+    joints, frames, links = _fold_joints(model)
+    if n == 0 or len(joints) == 0:
+        return jnp.broadcast_to(q_pred, (n,) + q_pred.shape)
+    p = pose(model, q_pred)
+    omega, origin = p.frames[frames, :3, 2], p.frames[frames, :3, 3]
+    d = p.link_end[links] - p.link_start[links]
+    d = d / jnp.linalg.norm(d, axis=-1, keepdims=True)
+    if isinstance(camera, Perspective):
+        ray = origin + camera.R.T @ camera.t     # from the camera centre -R^T t to the joint
+        ray = ray / jnp.linalg.norm(ray, axis=-1, keepdims=True)
+    else:
+        ray = jnp.broadcast_to(camera.R[2], origin.shape)
+    # depth of the turned link: A cos(x) + B sin(x) + C; the fold is where it is 0
+    wd, wv = jnp.sum(omega * d, -1), jnp.sum(omega * ray, -1)
+    A = jnp.sum(ray * d, -1) - wd * wv
+    B = jnp.sum(ray * jnp.cross(omega, d), -1)
+    C = wd * wv
+    R = jnp.sqrt(A * A + B * B) + 1e-12          # Guard: a link along its own axis
+    ok = jnp.abs(C) < R
+    phi, half = jnp.arctan2(B, A), jnp.arccos(jnp.clip(-C / R, -1.0, 1.0))
+    turns = jnp.stack([phi + half, phi - half], -1)
+    turns = jnp.arctan2(jnp.sin(turns), jnp.cos(turns))
+    fold = jnp.take_along_axis(turns, jnp.argmin(jnp.abs(turns), -1)[:, None], -1)[:, 0]
+    target = jnp.clip(q_pred[joints] + 2 * fold, model.q_lower[joints], model.q_upper[joints])
+    order = jnp.argsort(jnp.where(ok, jnp.abs(fold), jnp.inf))[np.arange(n) % len(joints)]
+    value = jnp.where(ok[order], target[order], q_pred[jnp.asarray(joints)[order]])
+    starts = jnp.broadcast_to(q_pred, (n,) + q_pred.shape)
+    return starts.at[np.arange(n), jnp.asarray(joints)[order]].set(value)
 
 
 def image_merit(model: Model, rig: tuple, feats: tuple, q, fractions, scale_px, rms_scale_px) -> Float[Array, ""]:
@@ -93,14 +150,15 @@ class _Candidates(eqx.Module):
 
 
 def candidates(model: Model, rig: tuple, feats: tuple, ghk: GHKState, extras, extra_valid, build, fit_config,
-               numbers, passes: int, priors, n_flips: int, flip_rad, terms: tuple = ()) -> _Candidates:
+               numbers, passes: int, priors, n_flips: int, flip_rad, n_folds: int = 0, terms: tuple = ()
+               ) -> _Candidates:
     """The prediction, its flips and the ``extras`` (where ``extra_valid``) solved in one vmapped
     call, each with the frame's extra solve ``terms``."""
     fractions = fit_config.link_fractions
     q_pred = ghk.x
     starts = jnp.concatenate([q_pred[None], flip_starts(model, rig, feats, q_pred, n_flips, flip_rad, fractions),
-                              extras])
-    valid = jnp.concatenate([jnp.ones(1 + n_flips, bool), extra_valid])
+                              fold_starts(model, rig[0], q_pred, n_folds), extras])
+    valid = jnp.concatenate([jnp.ones(1 + n_flips + n_folds, bool), extra_valid])
     solved = jax.vmap(lambda q0: solve_frame(model, rig, feats, q_pred, q0, build, fit_config, numbers, passes,
                                              priors, terms))(starts)
     def merit_of(q):
@@ -120,9 +178,10 @@ def _unpack(static: _Static, consts: tuple):
 
 @functools.partial(jax.jit, static_argnums=0)
 def _candidates_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras, extra_valid, terms: tuple = ()):
-    (model, rig, build, fit_config, numbers, passes, _, _, priors, _), (n_flips, flip_rad) = _unpack(static, consts)
+    (model, rig, build, fit_config, numbers, passes, _, _, priors, _), (n_flips, flip_rad, n_folds) = \
+        _unpack(static, consts)
     return candidates(model, rig, tuple(Features(*f) for f in feats), GHKState(*ghk), extras, extra_valid, build,
-                      fit_config, numbers, passes, priors, n_flips, flip_rad, terms)
+                      fit_config, numbers, passes, priors, n_flips, flip_rad, n_folds, terms)
 
 
 @functools.partial(jax.jit, static_argnums=0)
@@ -144,11 +203,11 @@ class HypothesisProgram:
     def __init__(self, model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float):
         hyp = config.hypotheses
         parts = (step_constants(model, rig, config, theta, dt_s),
-                 (hyp.flips, jnp.asarray(float(np.radians(hyp.flip_deg)))))
+                 (hyp.flips, jnp.asarray(float(np.radians(hyp.flip_deg))), hyp.folds))
         consts, static = eqx.partition(parts, eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(consts)
         self._consts, self._static = tuple(leaves), _Static((treedef, static))
-        self.n_flips = hyp.flips
+        self.n_flips, self.n_folds = hyp.flips, hyp.folds
 
     def candidates(self, feats: tuple, ghk: tuple, extras, extra_valid, terms: tuple = ()) -> _Candidates:
         """Every start's solve and merit (device arrays)."""

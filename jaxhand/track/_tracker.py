@@ -183,7 +183,7 @@ class Tracker:
             return None
         extras = extra_starts(self.model, hyp, np.asarray(state.ghk.x), state.q_solved, state.carried, proposals,
                               state.q_last if state.lost else None, frame)
-        return extras if len(extras[0]) or hyp.flips else None   # recovery alone: a frame after a good one
+        return extras if len(extras[0]) or hyp.flips or hyp.folds else None   # recovery alone: a frame after a good one
 
     def _solve_hypotheses(self, feats, ghk, state: TrackState, extras, images, fe_state, terms: tuple) -> _Picked:
         """Every start solved in one call, the front end's score of the candidates, the winner
@@ -197,7 +197,7 @@ class Tracker:
         t_score = time.perf_counter() - t0
         carried = runners_up(qs, total, winner, hyp.carry, hyp.carry_margin, float(np.radians(hyp.carry_min_deg)),
                              np.asarray(self.model.is_angle))
-        labels = ("prediction",) + ("flip",) * self._hypotheses.n_flips + labels
+        labels = ("prediction",) + ("flip",) * self._hypotheses.n_flips + ("fold",) * self._hypotheses.n_folds + labels
         return _Picked(self._hypotheses.commit(cands, winner, ghk, state.q_last), labels[winner], carried,
                        len(merit), t_score)
 
