@@ -12,6 +12,7 @@ from jaxhand.residuals import point_jacobian
 from jaxhand.solve import StateSpace, features_from_poses
 from jaxhand.solve.internal import (
     BatchConfig,
+    EdgeLanes,
     SparsePattern,
     batched_lm,
     lane_cholesky_solve,
@@ -98,14 +99,12 @@ def test_host_regrouping_gives_the_traced_loop_results():
     # Lanes are independent, so running them in phases of 2 trials and regrouping the slow ones
     # (solve_batched) must give what one loop per chunk gives (batched_lm), lane by lane.
     m, cam, Q, F, Q0 = _edge_problems(n=5, seed=8)
-    from jaxhand.solve._fit import _as_arrays, _EdgeResiduals
-
-    fn = _EdgeResiduals(model=m, cameras=(cam,), fractions=jnp.asarray((0.25, 0.75)))
-    feats = _as_arrays((F,))
+    fn = EdgeLanes(model=m, cameras=(cam,), fractions=jnp.asarray((0.25, 0.75)))
+    feats = (jax.tree_util.tree_map(jnp.asarray, F),)
     cfg = BatchConfig(chunk=2, phase_steps=2, max_steps=30)
     space = StateSpace.of(m)
-    host = solve_batched(fn, feats, jnp.asarray(Q0), space, cfg)
-    traced = jax.jit(lambda f, q: batched_lm(fn, f, q, space, cfg))(feats, jnp.asarray(Q0))
+    host = solve_batched(fn, feats, jnp.asarray(Q0), space, cfg, fn.pattern())
+    traced = jax.jit(lambda f, q: batched_lm(fn, f, q, space, cfg, fn.pattern()))(feats, jnp.asarray(Q0))
     np.testing.assert_allclose(np.asarray(host.q), np.asarray(traced.q), atol=1e-10)
     np.testing.assert_array_equal(np.asarray(host.iterations), np.asarray(traced.iterations))
     assert np.asarray(host.iterations).max() > 2                # some lanes went through several phases
