@@ -125,7 +125,9 @@ def fit_batch(model: Model, cameras, features, q0, *, solver: str = "lm",
     or, with ``solver="batch"``, the batched bounded Levenberg-Marquardt of
     :mod:`jaxhand.solve._batched` (normal equations per lane, active set at the joint limits,
     slow lanes regrouped; ``config`` a :class:`~jaxhand.solve.internal.BatchConfig`), which does
-    not wait for the slowest problem.
+    not wait for the slowest problem; its residuals are computed for a chunk of problems at once,
+    lanes last, with only the Jacobian's structural nonzeros (a point moves with the joints of
+    its own chain: :class:`~jaxhand.solve.internal.EdgeLanes`), and it has no history.
 
     Args:
         features: one Features per camera whose every array has a leading batch axis B.
