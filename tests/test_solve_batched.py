@@ -1,6 +1,7 @@
 """The batched solver (jaxhand.solve._batched) and its lanes-last kernels (jaxhand.solve._lanes):
 reference vs fast, the sparse structure, and host-driven regrouping vs the traced loop."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -105,11 +106,12 @@ def test_edge_lane_kernel_matches_the_reference(name):
     Q1 = _qs(m, 4, 6) * 0.5 + Q * 0.5                          # away from the truth: nonzero residuals
     fractions = jnp.asarray((0.1, 0.5, 0.9))
     fn = EdgeLanes(model=m, cameras=rig, fractions=fractions)
-    r, J = fn(jnp.asarray(Q1.T), tuple(jax.tree_util.tree_map(jnp.asarray, f) for f in feats))
+    r, J = eqx.filter_jit(fn)(jnp.asarray(Q1.T), tuple(jax.tree_util.tree_map(jnp.asarray, f) for f in feats))
     pat = fn.pattern()
+    reference = eqx.filter_jit(residuals_and_jacobian)
     for b in range(Q.shape[0]):
         one = tuple(jax.tree_util.tree_map(lambda x, b=b: x[b], f) for f in feats)
-        r0, J0 = residuals_and_jacobian(jnp.asarray(Q1[b]), ResidualArgs(model=m, cameras=rig, features=one,
+        r0, J0 = reference(jnp.asarray(Q1[b]), ResidualArgs(model=m, cameras=rig, features=one,
                                                                           fractions=fractions))
         dense = np.zeros((pat.m, pat.n))
         dense[np.array(pat.rows), np.array(pat.cols)] = np.asarray(J[:, b])
