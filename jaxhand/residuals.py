@@ -44,7 +44,7 @@ from .model import Model
 
 __all__ = ["DEFAULT_LINK_FRACTIONS", "ResidualArgs", "make_residual_args", "residuals", "cost",
            "residual_jacobian", "residuals_and_jacobian", "point_jacobian", "residual_labels", "n_residuals",
-           "feature_distances"]
+           "feature_distances", "masked_features"]
 
 #: Default fractions along each link axis (0 = its joint, 1 = its end) of the link residual points.
 DEFAULT_LINK_FRACTIONS = (0.25, 0.75)
@@ -93,8 +93,9 @@ def _camera_residuals(model: Model, camera, feats: Features, pose, fractions) ->
     return _stack_residuals(feats, tips_px, pts_px)
 
 
-def _masked(feats: Features, dtype):
-    """The features with masked slots replaced (before any arithmetic) and sqrt of the weights:
+def masked_features(feats: Features, dtype):
+    """The features of one camera with masked slots replaced (before any arithmetic) and sqrt of
+    the weights (the one masking rule of the residuals, shared with the batched edge kernel):
     tip_valid (tips, 1), tip_obs (tips, 2), sqrt_tip_w (tips,), lines (links, 3), sqrt_line_w (links,).
 
     A masked tip observation becomes 0, so NaN there cannot leak into the residuals or (through
@@ -112,7 +113,7 @@ def _unweighted(feats: Features, tips_px, pts_px):
     """The raw residuals of one camera: tip offsets ``t(q) - t_obs`` (tips, 2) and signed
     distances of the link points to their observed lines (links, K), px, exact zeros in masked
     slots. The one distance rule of :func:`residuals` and :func:`feature_distances`."""
-    tip_valid, tip_obs, _, lines, _ = _masked(feats, tips_px.dtype)
+    tip_valid, tip_obs, _, lines, _ = masked_features(feats, tips_px.dtype)
     d_tip = jnp.where(tip_valid, tips_px - tip_obs, 0.0)
     d_link = jnp.sum(lines[:, None, :2] * pts_px, axis=-1) - lines[:, None, 2]
     return d_tip, d_link
@@ -120,7 +121,7 @@ def _unweighted(feats: Features, tips_px, pts_px):
 
 def _stack_residuals(feats: Features, tips_px, pts_px) -> Float[Array, " r"]:
     """One camera's residual vector from its projected tips (tips, 2) and link points (links, K, 2)."""
-    _, _, sqrt_tip_w, _, sqrt_line_w = _masked(feats, tips_px.dtype)
+    _, _, sqrt_tip_w, _, sqrt_line_w = masked_features(feats, tips_px.dtype)
     d_tip, d_link = _unweighted(feats, tips_px, pts_px)
     r_tip = d_tip * sqrt_tip_w[:, None]
     r_link = d_link * sqrt_line_w[:, None]
@@ -251,7 +252,7 @@ def residuals_and_jacobian(q: Float[ArrayLike, " nq"], args: ResidualArgs) -> tu
     for cam, f in zip(args.cameras, args.features):
         px, dpx = _project_with_jacobian(cam, points)
         rs.append(_stack_residuals(f, px[:nt], px[nt:].reshape(nl, K, 2)))
-        tip_valid, _, sqrt_tip_w, lines, sqrt_line_w = _masked(f, px.dtype)
+        tip_valid, _, sqrt_tip_w, lines, sqrt_line_w = masked_features(f, px.dtype)
         J_tip = jnp.where(tip_valid[..., None], dpx[:nt] @ J_world[:nt], 0.0) * sqrt_tip_w[:, None, None]
         # d(a x + b y - rho): the line normal times the pixel Jacobian, per link point
         normal_world = jnp.einsum("lc,lkcd->lkd", lines[:, :2], dpx[nt:].reshape(nl, K, 2, 3))

@@ -19,6 +19,7 @@ from ._batched import BatchConfig, check_batch_config, solve_batched
 from ._config import FitConfig, check_config
 from ._damped import make_damped_gauss_newton
 from ._driver import solve_least_squares
+from ._edges import EdgeLanes
 from ._parts import GaussNewtonFamily, StateSpace
 from ._result import FitResult
 from .bounded_trust_region import make_bounded_trust_region
@@ -118,30 +119,15 @@ def fit(model: Model, cameras, features, q0, *, solver: str = "lm", config: FitC
     return _fit_jit(model, rig, _as_arrays(feats), jnp.asarray(q0), build, config)
 
 
-class _EdgeResiduals(eqx.Module):
-    """The link and tip residuals with their geometric Jacobian, vmapped and laid out lanes last
-    for the batched solver (a pytree callable: its compiled programs are cached)."""
-
-    model: Model
-    cameras: tuple
-    fractions: jax.Array
-
-    def __call__(self, q, feats):
-        def one(q1, f1):
-            return residuals_and_jacobian(q1, ResidualArgs(model=self.model, cameras=self.cameras, features=f1,
-                                                           fractions=self.fractions))
-
-        r, J = jax.vmap(one)(q.T, feats)
-        return jnp.moveaxis(r, 0, -1), jnp.moveaxis(J, 0, -1).reshape(-1, q.shape[-1])
-
-
 def fit_batch(model: Model, cameras, features, q0, *, solver: str = "lm",
               config: FitConfig | BatchConfig | None = None) -> FitResult:
     """:func:`fit` over a leading batch axis: ``jax.vmap`` of the same solve, one compilation;
     or, with ``solver="batch"``, the batched bounded Levenberg-Marquardt of
     :mod:`jaxhand.solve._batched` (normal equations per lane, active set at the joint limits,
     slow lanes regrouped; ``config`` a :class:`~jaxhand.solve.internal.BatchConfig`), which does
-    not wait for the slowest problem.
+    not wait for the slowest problem; its residuals are computed for a chunk of problems at once,
+    lanes last, with only the Jacobian's structural nonzeros (a point moves with the joints of
+    its own chain: :class:`~jaxhand.solve.internal.EdgeLanes`), and it has no history.
 
     Args:
         features: one Features per camera whose every array has a leading batch axis B.
@@ -157,8 +143,8 @@ def fit_batch(model: Model, cameras, features, q0, *, solver: str = "lm",
         config = check_batch_config(config)
         feats = _validate_batch_features(model, rig, features)
         q0s = _validate_batch_q(model, q0, int(np.asarray(feats[0].lines).shape[0]))
-        fn = _EdgeResiduals(model=model, cameras=rig, fractions=jnp.asarray(DEFAULT_LINK_FRACTIONS))
-        return solve_batched(fn, _as_arrays(feats), jnp.asarray(q0s), StateSpace.of(model), config)
+        fn = EdgeLanes(model=model, cameras=rig, fractions=jnp.asarray(DEFAULT_LINK_FRACTIONS))
+        return solve_batched(fn, _as_arrays(feats), jnp.asarray(q0s), StateSpace.of(model), config, fn.pattern())
     build, config = solver_program(solver, config)
     feats = _validate_batch_features(model, rig, features)
     B = int(np.asarray(feats[0].lines).shape[0])

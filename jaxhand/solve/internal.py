@@ -13,7 +13,9 @@ change with the package; users call :func:`jaxhand.fit`.
   :mod:`jaxhand.solve._batched` (lanes last / per-problem residuals), with its
   :class:`BatchConfig` and :func:`check_batch_config`;
 - :func:`lane_frames`, :func:`lane_root`, :func:`lane_point_jacobian`: kinematics with the
-  batch axis last, for residual kernels of that solver.
+  batch axis last, for residual kernels of that solver;
+- :class:`EdgeLanes`: the link and tip residuals of that solver (lanes last, sparse J), the
+  kernel of ``fit_batch(solver="batch")``.
 """
 
 from ._batched import (
@@ -25,11 +27,11 @@ from ._batched import (
     solve_batched,
 )
 from ._config import JACOBIANS, check_config
+from ._edges import EdgeLanes
 from ._fit import fit_traced, solver_program
 from ._lanes import lane_contract, lane_frames, lane_matmul, lane_point_jacobian, lane_root, point_dependence
 from ._sparsity import SparsePattern
 
-__all__ = ["JACOBIANS", "check_config", "fit_traced", "solver_program", "BatchConfig", "SparsePattern", "batch_lm",
-           "batched_lm",
-           "check_batch_config", "lane_cholesky_solve", "solve_batched", "lane_contract", "lane_frames", "lane_matmul",
-           "lane_point_jacobian", "lane_root", "point_dependence"]
+__all__ = ["JACOBIANS", "EdgeLanes", "check_config", "fit_traced", "solver_program", "BatchConfig", "SparsePattern",
+           "batch_lm", "batched_lm", "check_batch_config", "lane_cholesky_solve", "solve_batched", "lane_contract",
+           "lane_frames", "lane_matmul", "lane_point_jacobian", "lane_root", "point_dependence"]
