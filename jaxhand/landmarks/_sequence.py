@@ -246,7 +246,8 @@ def _solve(prob: _Problem, Q0, config: SequenceConfig):
 
 
 def fit_sequence(model: Model, cameras, landmarks: Landmarks, q_init, *, shape: HandShape | None = None,
-                 theta0=None, config: SequenceConfig | None = None) -> SequenceResult:
+                 theta0=None, config: SequenceConfig | None = None, lmap: LandmarkMap | None = None
+                 ) -> SequenceResult:
     """Fit a whole sequence of landmark frames as one problem (see the module docstring).
 
     Args:
@@ -256,6 +257,7 @@ def fit_sequence(model: Model, cameras, landmarks: Landmarks, q_init, *, shape: 
             keeps the model's shape.
         theta0: starting (and prior) shape; default the nominal (scales 1, offsets 0).
         config: a :class:`SequenceConfig`.
+        lmap: where the landmarks sit on the model (default ``landmark_map(model)``: skin tips).
 
     Raises:
         InputError: shapes or non-finite starts.
@@ -278,6 +280,6 @@ def fit_sequence(model: Model, cameras, landmarks: Landmarks, q_init, *, shape: 
             raise InputError(f"theta0: expected {shape.size} finite values, got shape {th.shape}")
     dtype = jnp.asarray(0.0).dtype
     lm = jax.tree_util.tree_map(lambda x: jnp.asarray(x, dtype=bool if x.dtype == bool else dtype), landmarks)
-    prob = _Problem(model=model, cameras=rig, lmap=landmark_map(model), shape=shape, landmarks=lm,
-                    theta0=jnp.asarray(th))
+    lmap = landmark_map(model) if lmap is None else lmap
+    prob = _Problem(model=model, cameras=rig, lmap=lmap, shape=shape, landmarks=lm, theta0=jnp.asarray(th))
     return _solve(prob, jnp.asarray(Q0), config)
