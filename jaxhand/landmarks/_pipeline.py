@@ -10,6 +10,10 @@ Steps of :func:`fit_landmark_sequence`:
    the camera (8 starts); the lowest cost wins;
 2. every later frame from the previous result (one compiled ``lax.scan``; a frame without
    landmarks keeps the previous state);
+2b. (``init="paths"``, the default for a model whose palm does not move) every frame also from
+   fixed joint starts, and per independent block of joints (each finger, with the palm fixed)
+   the smoothest low-cost path through the candidates (:func:`~jaxhand.landmarks.smoothest_paths`):
+   one camera's mirror branches are chosen from the whole sequence, not from frame 0;
 3. :func:`~jaxhand.landmarks.fit_sequence` over all frames, with the temporal smoothness term and
    (with ``shape``) one hand shape shared by every frame.
 """
@@ -31,12 +35,19 @@ from ..model import Model, model_from_dict, model_to_dict, save_model
 from ..solve import StateSpace
 from ._convention import POINT_NAMES, LandmarkMap, landmark_map, landmark_positions
 from ._fit import BatchConfig, _as_float_landmarks, batch_lm, fit_landmarks_batch
+from ._paths import smoothest_paths
 from ._residuals import LandmarkArgs, Landmarks, landmark_residuals_and_jacobian
 from ._sequence import SequenceConfig, SequenceResult, fit_sequence
 from ._shape import HandShape, apply_shape, hand_shape
 
-__all__ = ["initial_starts", "track_landmarks", "fit_landmark_sequence", "SequenceFit", "calibrate_landmarks",
-           "save_calibrated_model", "projected_landmarks", "camera_from_fov"]
+__all__ = ["SEQUENCE_INITS", "initial_starts", "track_landmarks", "fit_landmark_sequence", "SequenceFit",
+           "calibrate_landmarks", "save_calibrated_model", "projected_landmarks", "camera_from_fov"]
+
+
+#: How :func:`fit_landmark_sequence` starts the whole-sequence solve: ``"track"`` (frame by
+#: frame), ``"paths"`` (also the smoothest paths through fixed starts), ``"auto"`` (``"paths"``
+#: unless the model's base is free: that case is measured only with ``"track"``).
+SEQUENCE_INITS = ("auto", "track", "paths")
 
 
 def camera_from_fov(size, fov_deg: float = 60.0) -> Perspective:
@@ -181,7 +192,8 @@ class SequenceFit:
 
 def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape: HandShape | None | str = "auto",
                           config: SequenceConfig | None = None, batch_config: BatchConfig | None = None,
-                          q0=None, sequence: bool = True, lmap: LandmarkMap | None = None) -> SequenceFit:
+                          q0=None, sequence: bool = True, lmap: LandmarkMap | None = None,
+                          init: str = "auto") -> SequenceFit:
     """Fit a whole landmark sequence (see the module docstring).
 
     Args:
@@ -193,7 +205,16 @@ def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape:
             result, ``shape`` is not fitted and ``result`` is None).
         lmap: where the landmarks sit on the model (default ``landmark_map(model)``: skin tips;
             ``landmark_map(model, tips="cap_centre")`` for data whose tips are cap centres).
+        init: one of :data:`SEQUENCE_INITS` (step 2b).
+
+    Raises:
+        InputError: shapes, an unknown ``shape`` or ``init``, no frame with landmarks.
     """
+    if init not in SEQUENCE_INITS:
+        raise InputError(f"init: expected one of {', '.join(SEQUENCE_INITS)}, got {init!r}")
+    if init == "auto":
+        init = "track" if model.base_kind == "free" else "paths"
+    lmap = landmark_map(model) if lmap is None else lmap
     rig = as_rig(cameras)
     if landmarks.px.ndim != 4:
         raise InputError(f"landmarks.px: expected (frames, cams, 21, 2), got {landmarks.px.shape}")
@@ -222,6 +243,11 @@ def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape:
     q_init, _, _ = track_landmarks(model, rig, landmarks, q_first, config=batch_config, lmap=lmap)
     q_init[:first] = q_first
     times["frame_by_frame_s"] = time.perf_counter() - t
+    if init == "paths":
+        t = time.perf_counter()
+        q_init = smoothest_paths(model, rig, landmarks, lmap, candidates=q_init[None], config=config,
+                                 batch_config=batch_config)
+        times["paths_s"] = time.perf_counter() - t
     if not sequence:
         return SequenceFit(q=q_init, q_init=q_init, model=model, theta=np.zeros(0), shape=None, result=None,
                            start_costs=costs, best_start=best, timings_s=times)
