@@ -19,28 +19,42 @@ from jaxhand.landmarks import (
     make_landmarks,
     save_calibrated_model,
 )
-from jaxhand.landmarks._sequence import _block_tridiag_solve
+from jaxhand.landmarks._sequence import _block_tridiag_solve, _pair_blocks, _smooth_gradient
 
 
-def test_block_tridiagonal_solve_matches_dense():
-    # Reference vs fast: the block Thomas recursion against a dense solve of the same system.
-    rng = np.random.default_rng(0)
-    T, n, k = 6, 4, 3
-    e = rng.uniform(0.5, 2.0, n)
-    D = []
-    for _ in range(T):
-        A = rng.normal(size=(n, n))
-        D.append(A @ A.T + 3 * np.diag(e) + np.eye(n))
-    D = np.stack(D)
+@pytest.mark.parametrize("T", [1, 2, 5, 6])
+def test_paired_band_solve_matches_dense(T):
+    # Reference vs fast: the smoothness bands grouped in pairs of frames and solved by the block
+    # Thomas recursion, against a dense solve of data blocks + e D1^T D1 + a D2^T D2 (explicit
+    # difference matrices).
+    rng = np.random.default_rng(T)
+    n, k = 4, 3
+    e, a = rng.uniform(0.5, 2.0, n), rng.uniform(0.5, 2.0, n)
+    D = np.stack([(lambda A: A @ A.T + np.eye(n))(rng.normal(size=(n, n))) for _ in range(T)])
     R = rng.normal(size=(T, n, k))
+    D1 = (np.eye(T, k=1) - np.eye(T))[:-1]
+    D2 = (np.eye(T) - 2 * np.eye(T, k=1) + np.eye(T, k=2))[: max(T - 2, 0)]
     dense = np.zeros((T * n, T * n))
     for t in range(T):
         dense[t * n:(t + 1) * n, t * n:(t + 1) * n] = D[t]
-        if t + 1 < T:
-            dense[t * n:(t + 1) * n, (t + 1) * n:(t + 2) * n] = -np.diag(e)
-            dense[(t + 1) * n:(t + 2) * n, t * n:(t + 1) * n] = -np.diag(e)
-    x = np.asarray(_block_tridiag_solve(jnp.asarray(D), jnp.asarray(e), jnp.asarray(R)))
+    dense += np.kron(D1.T @ D1, np.diag(e)) + np.kron(D2.T @ D2, np.diag(a))
+    Dm, lo = _pair_blocks(jnp.asarray(D), jnp.asarray(e), jnp.asarray(a))
+    M = (T + 1) // 2
+    Rp = np.concatenate([R, np.zeros((2 * M - T, n, k))]).reshape(M, 2 * n, k)
+    x = np.asarray(_block_tridiag_solve(Dm, lo, jnp.asarray(Rp))).reshape(2 * M, n, k)[:T]
     np.testing.assert_allclose(x.reshape(T * n, k), np.linalg.solve(dense, R.reshape(T * n, k)), atol=1e-10)
+
+
+def test_smoothness_gradient_matches_autodiff():
+    rng = np.random.default_rng(1)
+    Q = jnp.asarray(rng.normal(size=(7, 3)))
+    e, a = jnp.asarray(rng.uniform(0.5, 2, 3)), jnp.asarray(rng.uniform(0.5, 2, 3))
+
+    def cost(Q):
+        d1, d2 = Q[1:] - Q[:-1], Q[2:] - 2 * Q[1:-1] + Q[:-2]
+        return 0.5 * jnp.sum(e * d1 * d1) + 0.5 * jnp.sum(a * d2 * d2)
+
+    np.testing.assert_allclose(np.asarray(_smooth_gradient(Q, e, a)), np.asarray(jax.grad(cost)(Q)), atol=1e-12)
 
 
 def test_nominal_shape_is_the_model_and_scales_move_the_right_numbers():

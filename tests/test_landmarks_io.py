@@ -146,3 +146,54 @@ def test_fit_landmarks_reads_the_model_handedness(tmp_path):
         summary = json.loads((out / "summary.json").read_text())
         assert summary["model_hand"] == ("right" if model.endswith("right") else "left")
         assert summary["mirrored"] is mirrored
+
+
+def test_mediapipe_nan_points_are_masked_and_reported(tmp_path):
+    pts = [[1.0, 2.0, 0.0]] * 21
+    pts[8] = [float("nan"), 3.0, 0.0]
+    p = tmp_path / "mp.json"
+    # json.dumps writes NaN, which MediaPipe's own writer (Python json) does as well
+    p.write_text(json.dumps({"joint_names": list(POINT_NAMES),
+                             "frames": [{"frame": 0, "hands": [{"landmarks_px": pts}]}]}))
+    seq = load_landmarks(p)
+    assert seq.notes["nan_points"] == 1
+    assert not seq.valid[0, 8] and seq.valid[0, :8].all() and seq.confidence[0, 8] == 0.0
+
+
+def test_mediapipe_unknown_point_names_are_an_error(tmp_path):
+    names = list(POINT_NAMES)
+    names[4] = "thumb_end"
+    p = tmp_path / "mp.json"
+    p.write_text(json.dumps({"joint_names": names, "frames": []}))
+    with pytest.raises(LandmarkFileError, match="joint_names differ from the 21-point convention"):
+        load_landmarks(p)
+
+
+def test_plain_json_unknown_point_name_is_an_error(tmp_path):
+    p = tmp_path / "lm.json"
+    p.write_text(json.dumps({"format": "jaxhand-landmarks", "format_version": 1,
+                             "rows": [{"frame": 0, "point": "index_tp", "x": 1.0, "y": 2.0}]}))
+    with pytest.raises(LandmarkFileError, match="unknown point 'index_tp'"):
+        load_landmarks(p)
+
+
+def test_a_second_hand_is_skipped_and_reported(tmp_path):
+    # Two different hands in frames 1 and 2 (a left hand far away, listed first): the hand
+    # nearest the previous frame's is kept, the other skipped, and the frames are named.
+    right = [[100.0 + i, 50.0, 0.0] for i in range(21)]
+    left = [[400.0 + i, 300.0, 0.0] for i in range(21)]
+    r = {"landmarks_px": right, "score": 0.9, "handedness_unmirrored": "Right"}
+    le = {"landmarks_px": left, "score": 0.95, "handedness_unmirrored": "Left"}
+    p = _mediapipe(tmp_path, [{"frame": 0, "hands": [r]}, {"frame": 1, "hands": [le, r]},
+                              {"frame": 2, "hands": [le, r]}])
+    seq = load_landmarks(p)
+    assert seq.notes["two_hand_frames"] == [1, 2]
+    np.testing.assert_allclose(seq.px[:, 0], np.array([[99.5, 49.5]] * 3))
+    assert seq.handedness == "right"
+
+
+def test_fit_landmarks_command_without_any_landmark_is_one_line(tmp_path, capsys):
+    p = _mediapipe(tmp_path, [{"frame": 0, "hands": []}, {"frame": 1, "hands": []}])
+    assert main(["fit-landmarks", str(p), "--out", str(tmp_path / "o"), "--no-video"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].endswith("mp.json: no landmarks")

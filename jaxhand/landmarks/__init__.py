@@ -3,10 +3,12 @@ models, 2-D/3-D keypoint residuals in the residual stack, single, batched and wh
 fits, hand calibration, landmark files, and per-frame landmark poses and solve terms for the
 tracker."""
 
-from ._convention import BUILTIN_HANDEDNESS, POINT_NAMES, LandmarkMap, landmark_map, landmark_positions
+from ._convention import BUILTIN_HANDEDNESS, POINT_NAMES, TIP_CONVENTIONS, LandmarkMap, landmark_map, landmark_positions
 from ._fit import LANDMARK_SOLVERS, BatchConfig, fit_landmarks, fit_landmarks_batch
 from ._io import LandmarkFileError, LandmarkSequence, load_landmarks, mirror_x, save_landmarks_csv
+from ._paths import START_FRACTIONS, independent_blocks, joint_starts, smoothest_paths
 from ._pipeline import (
+    SEQUENCE_INITS,
     SequenceFit,
     calibrate_landmarks,
     camera_from_fov,
@@ -32,7 +34,7 @@ from ._residuals import (
 from ._sequence import SequenceConfig, SequenceResult, fit_sequence
 from ._shape import HandShape, apply_shape, hand_shape
 
-__all__ = ["POINT_NAMES", "BUILTIN_HANDEDNESS", "LandmarkMap", "landmark_map", "landmark_positions",
+__all__ = ["POINT_NAMES", "BUILTIN_HANDEDNESS", "TIP_CONVENTIONS", "LandmarkMap", "landmark_map", "landmark_positions",
            "Landmarks", "LandmarkArgs", "make_landmarks", "make_landmark_args", "landmark_residuals",
            "landmark_residuals_and_jacobian", "stacked_residuals", "stacked_residuals_and_jacobian",
            "landmark_residual_labels", "BatchConfig", "fit_landmarks", "fit_landmarks_batch", "LANDMARK_SOLVERS",
@@ -41,4 +43,5 @@ __all__ = ["POINT_NAMES", "BUILTIN_HANDEDNESS", "LandmarkMap", "landmark_map", "
            "SequenceFit", "fit_landmark_sequence", "track_landmarks", "initial_starts", "calibrate_landmarks",
            "save_calibrated_model", "projected_landmarks", "camera_from_fov", "LandmarkPoses", "fit_landmark_poses",
            "LANDMARK_FITS", "MIN_POINTS", "ON_FINGERS_PX", "landmark_agreement", "LandmarkTerm", "LandmarkPrior",
-           "landmark_term"]
+           "landmark_term", "SEQUENCE_INITS", "START_FRACTIONS", "independent_blocks", "joint_starts",
+           "smoothest_paths"]

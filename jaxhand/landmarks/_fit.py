@@ -19,7 +19,7 @@ from ..solve import FitConfig, FitResult, StateSpace, solve_least_squares
 from ..solve.bounded_trust_region import make_bounded_trust_region
 from ..solve.internal import BatchConfig, batch_lm, check_batch_config, solve_batched
 from ..solve.levenberg_marquardt import make_levenberg_marquardt
-from ._convention import LandmarkMap, landmark_map
+from ._convention import LandmarkMap
 from ._residuals import (
     LandmarkArgs,
     Landmarks,
@@ -60,7 +60,7 @@ def _as_float_landmarks(landmarks: Landmarks) -> Landmarks:
 
 
 def fit_landmarks_batch(model: Model, cameras, landmarks: Landmarks, q0, *,
-                        config: BatchConfig | None = None) -> FitResult:
+                        config: BatchConfig | None = None, lmap: LandmarkMap | None = None) -> FitResult:
     """Fit B frames of landmarks at once (one compiled program per model structure, rig and
     chunk size): the batch solver of this module, vmapped over problems.
 
@@ -68,6 +68,7 @@ def fit_landmarks_batch(model: Model, cameras, landmarks: Landmarks, q0, *,
         landmarks: :class:`Landmarks` whose arrays have a leading batch axis B.
         q0: (B, n_q) starts, or (n_q,) for the same start everywhere.
         config: a :class:`BatchConfig`.
+        lmap: where the landmarks sit on the model (default ``landmark_map(model)``: skin tips).
 
     Returns:
         A :class:`~jaxhand.FitResult` with leading axis B (no history).
@@ -79,7 +80,7 @@ def fit_landmarks_batch(model: Model, cameras, landmarks: Landmarks, q0, *,
     rig = as_rig(cameras)
     if landmarks.px.ndim != 4:
         raise InputError(f"landmarks.px: expected shape (B, cams, 21, 2) for a batch, got {landmarks.px.shape}")
-    args = make_landmark_args(model, rig, landmarks)
+    args = make_landmark_args(model, rig, landmarks, lmap=lmap)
     B = landmarks.px.shape[0]
     q = np.asarray(q0, float)
     if q.shape == (model.n_q,):
@@ -104,7 +105,8 @@ def _single_jit(args: LandmarkArgs, q0, solver: str, config: FitConfig):
 
 
 def fit_landmarks(model: Model, cameras, landmarks: Landmarks, q0, *, solver: str = "bounded",
-                  config: FitConfig | BatchConfig | None = None, edges=None) -> FitResult:
+                  config: FitConfig | BatchConfig | None = None, edges=None,
+                  lmap: LandmarkMap | None = None) -> FitResult:
     """Fit one frame's landmarks (and, with ``edges``, link and tip features in the same stack).
 
     Args:
@@ -115,6 +117,7 @@ def fit_landmarks(model: Model, cameras, landmarks: Landmarks, q0, *, solver: st
         config: a :class:`~jaxhand.FitConfig` (``lm``, ``bounded``; default with the geometric
             Jacobian) or a :class:`BatchConfig` (``fast``).
         edges: optional :class:`~jaxhand.residuals.ResidualArgs` of the same model and rig.
+        lmap: where the landmarks sit on the model (default ``landmark_map(model)``: skin tips).
 
     Raises:
         InputError: unknown solver, shapes, a non-finite start.
@@ -129,10 +132,10 @@ def fit_landmarks(model: Model, cameras, landmarks: Landmarks, q0, *, solver: st
         if edges is not None:
             raise InputError("solver 'fast' fits landmarks only; use 'lm' or 'bounded' with edges")
         lm = jax.tree_util.tree_map(lambda x: x[None], landmarks)
-        res = fit_landmarks_batch(model, rig, lm, q0[None], config=config)
+        res = fit_landmarks_batch(model, rig, lm, q0[None], config=config, lmap=lmap)
         return jax.tree_util.tree_map(lambda x: x[0], res)
     config = FitConfig(jacobian="geometric") if config is None else config
     if not isinstance(config, FitConfig):
         raise InputError(f"config: solver {solver!r} takes a FitConfig, got {type(config).__name__}")
-    args = make_landmark_args(model, rig, _as_float_landmarks(landmarks), lmap=landmark_map(model), edges=edges)
+    args = make_landmark_args(model, rig, _as_float_landmarks(landmarks), lmap=lmap, edges=edges)
     return _single_jit(args, jnp.asarray(q0), solver, config)

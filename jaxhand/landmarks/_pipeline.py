@@ -10,6 +10,10 @@ Steps of :func:`fit_landmark_sequence`:
    the camera (8 starts); the lowest cost wins;
 2. every later frame from the previous result (one compiled ``lax.scan``; a frame without
    landmarks keeps the previous state);
+2b. (``init="paths"``, the default for a model whose palm does not move) every frame also from
+   fixed joint starts, and per independent block of joints (each finger, with the palm fixed)
+   the smoothest low-cost path through the candidates (:func:`~jaxhand.landmarks.smoothest_paths`):
+   one camera's mirror branches are chosen from the whole sequence, not from frame 0;
 3. :func:`~jaxhand.landmarks.fit_sequence` over all frames, with the temporal smoothness term and
    (with ``shape``) one hand shape shared by every frame.
 """
@@ -29,14 +33,21 @@ from ..camera import Orthographic, Perspective, as_rig
 from ..kinematics import pose as pose_at
 from ..model import Model, model_from_dict, model_to_dict, save_model
 from ..solve import StateSpace
-from ._convention import POINT_NAMES, landmark_map, landmark_positions
+from ._convention import POINT_NAMES, LandmarkMap, landmark_map, landmark_positions
 from ._fit import BatchConfig, _as_float_landmarks, batch_lm, fit_landmarks_batch
+from ._paths import smoothest_paths
 from ._residuals import LandmarkArgs, Landmarks, landmark_residuals_and_jacobian
 from ._sequence import SequenceConfig, SequenceResult, fit_sequence
 from ._shape import HandShape, apply_shape, hand_shape
 
-__all__ = ["initial_starts", "track_landmarks", "fit_landmark_sequence", "SequenceFit", "calibrate_landmarks",
-           "save_calibrated_model", "projected_landmarks", "camera_from_fov"]
+__all__ = ["SEQUENCE_INITS", "initial_starts", "track_landmarks", "fit_landmark_sequence", "SequenceFit",
+           "calibrate_landmarks", "save_calibrated_model", "projected_landmarks", "camera_from_fov"]
+
+
+#: How :func:`fit_landmark_sequence` starts the whole-sequence solve: ``"track"`` (frame by
+#: frame), ``"paths"`` (also the smoothest paths through fixed starts), ``"auto"`` (``"paths"``
+#: unless the model's base is free: that case is measured only with ``"track"``).
+SEQUENCE_INITS = ("auto", "track", "paths")
 
 
 def camera_from_fov(size, fov_deg: float = 60.0) -> Perspective:
@@ -76,13 +87,13 @@ def _rot(axis: int, angle: float) -> np.ndarray:
     return R
 
 
-def initial_starts(model: Model, camera, px: np.ndarray) -> np.ndarray:
+def initial_starts(model: Model, camera, px: np.ndarray, *, lmap: LandmarkMap | None = None) -> np.ndarray:
     """Starting states for one frame's 2-D landmarks ``px`` (21, 2) in ``camera``: (8, n_q) for a
     free palm (see the module docstring), the model's default (1, n_q) otherwise."""
     q0 = np.asarray(model.q_default, float)
     if model.base_kind != "free":
         return q0[None]
-    lmap = landmark_map(model)
+    lmap = landmark_map(model) if lmap is None else lmap
     wi, mi = POINT_NAMES.index("wrist"), POINT_NAMES.index("middle_mcp")
     P = np.asarray(landmark_positions(model, lmap, pose_at(model, jnp.asarray(q0)), jnp.asarray(q0)))
     R_cam = np.asarray(camera.R)
@@ -143,12 +154,14 @@ def _track_jit(model, rig, lmap, landmarks, q0, config):
     return out
 
 
-def track_landmarks(model: Model, cameras, landmarks: Landmarks, q0, *, config: BatchConfig | None = None):
+def track_landmarks(model: Model, cameras, landmarks: Landmarks, q0, *, config: BatchConfig | None = None,
+                    lmap: LandmarkMap | None = None):
     """Fit frame after frame, each from the previous result (frame 0 from ``q0``): (q (T, n_q),
-    cost (T,), iterations (T,))."""
+    cost (T,), iterations (T,)). ``lmap``: where the landmarks sit (default skin tips)."""
     config = BatchConfig(chunk=1) if config is None else dataclasses.replace(config, chunk=1)
     rig = as_rig(cameras)
-    q, cost, it = _track_jit(model, rig, landmark_map(model), _as_float_landmarks(landmarks),
+    lmap = landmark_map(model) if lmap is None else lmap
+    q, cost, it = _track_jit(model, rig, lmap, _as_float_landmarks(landmarks),
                              jnp.asarray(np.asarray(q0, float)), config)
     return np.array(q), np.array(cost), np.array(it)
 
@@ -179,7 +192,8 @@ class SequenceFit:
 
 def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape: HandShape | None | str = "auto",
                           config: SequenceConfig | None = None, batch_config: BatchConfig | None = None,
-                          q0=None, sequence: bool = True) -> SequenceFit:
+                          q0=None, sequence: bool = True, lmap: LandmarkMap | None = None,
+                          init: str = "auto") -> SequenceFit:
     """Fit a whole landmark sequence (see the module docstring).
 
     Args:
@@ -189,7 +203,18 @@ def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape:
         q0: optional (n_q,) start of frame 0 instead of the automatic starts.
         sequence: run step 3, the whole-sequence solve (False: the frame-by-frame fits are the
             result, ``shape`` is not fitted and ``result`` is None).
+        lmap: where the landmarks sit on the model (default ``landmark_map(model)``: skin tips;
+            ``landmark_map(model, tips="cap_centre")`` for data whose tips are cap centres).
+        init: one of :data:`SEQUENCE_INITS` (step 2b).
+
+    Raises:
+        InputError: shapes, an unknown ``shape`` or ``init``, no frame with landmarks.
     """
+    if init not in SEQUENCE_INITS:
+        raise InputError(f"init: expected one of {', '.join(SEQUENCE_INITS)}, got {init!r}")
+    if init == "auto":
+        init = "track" if model.base_kind == "free" else "paths"
+    lmap = landmark_map(model) if lmap is None else lmap
     rig = as_rig(cameras)
     if landmarks.px.ndim != 4:
         raise InputError(f"landmarks.px: expected (frames, cams, 21, 2), got {landmarks.px.shape}")
@@ -205,24 +230,29 @@ def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape:
     t = time.perf_counter()
     if q0 is None:
         starts = initial_starts(model, rig[0], np.where(np.asarray(landmarks.px_valid)[first, 0][:, None],
-                                                        np.asarray(landmarks.px)[first, 0], np.nan))
+                                                        np.asarray(landmarks.px)[first, 0], np.nan), lmap=lmap)
     else:
         starts = np.asarray(q0, float)[None]
     one = jax.tree_util.tree_map(lambda x: jnp.broadcast_to(x[first], (len(starts),) + x.shape[1:]), landmarks)
-    res0 = fit_landmarks_batch(model, rig, one, starts, config=batch_config)
+    res0 = fit_landmarks_batch(model, rig, one, starts, config=batch_config, lmap=lmap)
     costs = np.asarray(res0.cost)
     best = int(np.argmin(costs))
     q_first = np.asarray(res0.q)[best]
     times["first_frame_s"] = time.perf_counter() - t
     t = time.perf_counter()
-    q_init, _, _ = track_landmarks(model, rig, landmarks, q_first, config=batch_config)
+    q_init, _, _ = track_landmarks(model, rig, landmarks, q_first, config=batch_config, lmap=lmap)
     q_init[:first] = q_first
     times["frame_by_frame_s"] = time.perf_counter() - t
+    if init == "paths":
+        t = time.perf_counter()
+        q_init = smoothest_paths(model, rig, landmarks, lmap, candidates=q_init[None], config=config,
+                                 batch_config=batch_config)
+        times["paths_s"] = time.perf_counter() - t
     if not sequence:
         return SequenceFit(q=q_init, q_init=q_init, model=model, theta=np.zeros(0), shape=None, result=None,
                            start_costs=costs, best_start=best, timings_s=times)
     t = time.perf_counter()
-    res = fit_sequence(model, rig, landmarks, q_init, shape=shape, config=config)
+    res = fit_sequence(model, rig, landmarks, q_init, shape=shape, config=config, lmap=lmap)
     jax.block_until_ready(res)
     times["sequence_s"] = time.perf_counter() - t
     theta = np.asarray(res.theta)
@@ -269,6 +299,9 @@ def _project_all(model, camera, lmap, Q):
     return jax.vmap(one)(Q)
 
 
-def projected_landmarks(model: Model, camera: Perspective | Orthographic, q) -> np.ndarray:
-    """(T, 21, 2) pixels of the model's landmark points at states q (T, n_q) in one camera."""
-    return np.array(_project_all(model, camera, landmark_map(model), jnp.asarray(np.atleast_2d(q))))
+def projected_landmarks(model: Model, camera: Perspective | Orthographic, q, *,
+                        lmap: LandmarkMap | None = None) -> np.ndarray:
+    """(T, 21, 2) pixels of the model's landmark points at states q (T, n_q) in one camera
+    (``lmap`` default: skin tips)."""
+    lmap = landmark_map(model) if lmap is None else lmap
+    return np.array(_project_all(model, camera, lmap, jnp.asarray(np.atleast_2d(q))))

@@ -8,14 +8,18 @@ Unknowns: ``Q`` (frames, n_q), one state per frame, and ``theta`` (p,), the shap
 - per pair of consecutive frames, ``w * (Q_{t+1} - Q_t)`` with ``w`` = ``smooth_px_per_rad`` for
   angles and quaternion entries and ``smooth_px_per_mm`` for lengths (a change of 1 rad between
   frames costs as much as a ``w``-pixel landmark error);
+- per triple of consecutive frames, ``a * (Q_{t+1} - 2 Q_t + Q_{t-1})`` with ``a`` =
+  ``accel_px_per_rad`` / ``accel_px_per_mm`` (off by default): a penalty on acceleration, which
+  unlike the first difference does not pull a steady motion towards standing still;
 - a prior ``w_s (s - 1)`` on each scale and ``w_o o`` on each palm offset (mm), which keeps
   directions no landmark sees (and one camera's scale-depth ambiguity) determined.
 
-Solver: Levenberg-Marquardt on the normal equations, whose matrix is block tridiagonal in ``Q``
-(the smoothness couples neighbours only) with a dense border for ``theta``. Each step
-eliminates ``Q`` by a block Thomas recursion (``lax.scan`` forward and back, one n x n Cholesky
-per frame) and solves the p x p Schur complement for ``theta``, so a step costs O(frames n^3),
-not O((frames n)^3). Trials are clipped into the joint limits and the shape bounds, quaternions
+Solver: Levenberg-Marquardt on the normal equations, whose matrix is block banded in ``Q`` (the
+smoothness couples frames at most two apart) with a dense border for ``theta``. Grouping the
+frames in pairs makes the band block tridiagonal with 2n x 2n blocks; each step eliminates ``Q``
+by a block Thomas recursion (``lax.scan`` forward and back, one 2n x 2n Cholesky per pair of
+frames) and solves the p x p Schur complement for ``theta``, so a step costs O(frames n^3), not
+O((frames n)^3). Trials are clipped into the joint limits and the shape bounds, quaternions
 renormalised; a trial that lowers the total cost is taken (lambda / 3), otherwise lambda x 4.
 Stops when an accepted step lowers the cost by at most ``ftol`` of it, or after ``max_steps``.
 The per-frame Jacobians are ``jax.jacfwd`` in (q, theta) together.
@@ -32,6 +36,7 @@ from jaxtyping import Array, Float
 from .._errors import InputError
 from ..camera import as_rig
 from ..model import Model
+from ..solve import StateSpace
 from ._convention import LandmarkMap, landmark_map
 from ._residuals import LandmarkArgs, Landmarks, landmark_residuals
 from ._shape import HandShape, apply_shape
@@ -51,6 +56,9 @@ class SequenceConfig(eqx.Module):
         smooth_px_per_rad: traced. Weight of the change of an angle (or quaternion entry) between
             consecutive frames; 0 fits the frames independently (calibration over unrelated poses).
         smooth_px_per_mm: traced. The same for lengths (palm translation, prismatic joints).
+        accel_px_per_rad: traced. Weight of an angle's second difference over three consecutive
+            frames (px per rad); 0: off.
+        accel_px_per_mm: traced. The same for lengths (px per mm).
         scale_prior_px: traced. Weight of ``scale - 1`` (px per unit of scale). The default keeps a
             one-camera fit of detector landmarks near the model's proportions (without it, the
             real video's fit drove phalanges to the 0.5 and 1.7 bounds); calibration with 3-D
@@ -65,6 +73,8 @@ class SequenceConfig(eqx.Module):
     max_steps: int = eqx.field(static=True, default=60)
     smooth_px_per_rad: Float[Array, ""] = eqx.field(converter=_f, default=20.0)
     smooth_px_per_mm: Float[Array, ""] = eqx.field(converter=_f, default=0.5)
+    accel_px_per_rad: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
+    accel_px_per_mm: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
     scale_prior_px: Float[Array, ""] = eqx.field(converter=_f, default=20.0)
     offset_prior_px_per_mm: Float[Array, ""] = eqx.field(converter=_f, default=1.0)
     scale_bounds: Float[Array, " 2"] = eqx.field(converter=_f, default=(0.5, 2.0))
@@ -93,33 +103,91 @@ class SequenceResult(eqx.Module):
     converged: Array
 
 
-def _block_tridiag_solve(D, e, R):
-    """Solve the block tridiagonal SPD system with diagonal blocks ``D`` (T, n, n), off-diagonal
-    blocks ``-diag(e)`` and right-hand sides ``R`` (T, n, k) by the block Thomas recursion."""
-    E = -jnp.diag(e)
-
+def _block_tridiag_solve(D, L, R):
+    """Solve the block tridiagonal SPD system with diagonal blocks ``D`` (M, b, b), blocks ``L``
+    (M - 1, b, b) below the diagonal (block (m + 1, m)) and right-hand sides ``R`` (M, b, k) by
+    the block Thomas recursion."""
     def fwd(carry, x):
         L_prev, Y_prev = carry
-        D_t, R_t = x
-        # Schur update with the previous pivot block: D_t - E D'^-1 E, R_t - E D'^-1 Y'
-        Dp = D_t - E @ jax.scipy.linalg.cho_solve((L_prev, True), E)
-        Yp = R_t - E @ jax.scipy.linalg.cho_solve((L_prev, True), Y_prev)
-        L = jnp.linalg.cholesky(Dp)
-        return (L, Yp), (L, Yp)
+        D_m, R_m, L_m = x
+        # Schur update with the previous pivot block: D_m - L S'^-1 L^T, R_m - L S'^-1 Y'
+        Dp = D_m - L_m @ jax.scipy.linalg.cho_solve((L_prev, True), L_m.T)
+        Yp = R_m - L_m @ jax.scipy.linalg.cho_solve((L_prev, True), Y_prev)
+        C = jnp.linalg.cholesky(Dp)
+        return (C, Yp), (C, Yp)
 
-    L0 = jnp.linalg.cholesky(D[0])
-    _, (Ls, Ys) = jax.lax.scan(fwd, (L0, R[0]), (D[1:], R[1:]))
-    Ls = jnp.concatenate([L0[None], Ls])
+    C0 = jnp.linalg.cholesky(D[0])
+    _, (Cs, Ys) = jax.lax.scan(fwd, (C0, R[0]), (D[1:], R[1:], L))
+    Cs = jnp.concatenate([C0[None], Cs])
     Ys = jnp.concatenate([R[:1], Ys])
 
     def bwd(x_next, inp):
-        L, Y = inp
-        x = jax.scipy.linalg.cho_solve((L, True), Y - E @ x_next)
+        C, Y, L_m = inp
+        x = jax.scipy.linalg.cho_solve((C, True), Y - L_m.T @ x_next)
         return x, x
 
-    xT = jax.scipy.linalg.cho_solve((Ls[-1], True), Ys[-1])
-    _, xs = jax.lax.scan(bwd, xT, (Ls[:-1], Ys[:-1]), reverse=True)
-    return jnp.concatenate([xs, xT[None]])
+    xM = jax.scipy.linalg.cho_solve((Cs[-1], True), Ys[-1])
+    _, xs = jax.lax.scan(bwd, xM, (Cs[:-1], Ys[:-1], L), reverse=True)
+    return jnp.concatenate([xs, xM[None]])
+
+
+def _temporal_bands(T: int) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+    """The bands of the first- and second-difference Gram matrices D1^T D1 and D2^T D2 over T
+    frames (static): (v0 (T,), v1 (T,)) and (a0 (T,), a1 (T,), a2 (T,)), entry t of band k
+    being element (t, t + k) (0 past the end)."""
+    v0, v1 = np.zeros(T), np.zeros(T)
+    a0, a1, a2 = np.zeros(T), np.zeros(T), np.zeros(T)
+    for r in range(T - 1):          # rows (-1, 1) at frames r, r + 1
+        v0[r] += 1
+        v0[r + 1] += 1
+        v1[r] -= 1
+    for r in range(T - 2):          # rows (1, -2, 1) at frames r, r + 1, r + 2
+        a0[r:r + 3] += (1, 4, 1)
+        a1[r:r + 2] -= 2
+        a2[r] += 1
+    return (v0, v1), (a0, a1, a2)
+
+
+def _pairs(T: int) -> int:
+    return (T + 1) // 2
+
+
+def _pair_blocks(D, e, a):
+    """The normal matrix's Q part grouped in pairs of frames: (M, 2n, 2n) diagonal and (M - 1,
+    2n, 2n) sub-diagonal blocks, from the data blocks ``D`` (T, n, n) and the smoothness weights
+    ``e``, ``a`` (n,) (squared). An odd T gets a padding frame with an identity block."""
+    T, n = D.shape[0], D.shape[1]
+    M = _pairs(T)
+    (v0, v1), (a0, a1, a2) = _temporal_bands(T)
+    pad = 2 * M - T
+    eye = jnp.eye(n, dtype=D.dtype)
+    D = jnp.concatenate([D, jnp.broadcast_to(eye, (pad, n, n))]) if pad else D
+    v0, v1, a0, a1, a2 = (np.concatenate([x, np.zeros(pad)])[:, None] for x in (v0, v1, a0, a1, a2))
+    band0, band1, band2 = v0 * e + a0 * a, v1 * e + a1 * a, a2 * a      # (2M, n) each
+    D = D + jax.vmap(jnp.diag)(band0)
+    diag = jax.vmap(jnp.diag)
+    z = jnp.zeros((M, n, n), D.dtype)
+    top = jnp.concatenate([D[0::2], diag(band1[0::2])], axis=-1)
+    bottom = jnp.concatenate([diag(band1[0::2]), D[1::2]], axis=-1)
+    Dm = jnp.concatenate([top, bottom], axis=-2)
+    # block (m + 1, m): frames (2m + 2, 2m + 3) x (2m, 2m + 1)
+    lo = jnp.concatenate([jnp.concatenate([diag(band2[0::2]), diag(band1[1::2])], axis=-1),
+                          jnp.concatenate([z, diag(band2[1::2])], axis=-1)], axis=-2)[:-1]
+    return Dm, lo
+
+
+def _smooth_gradient(Q, e, a):
+    """d/dQ of 0.5 |sqrt(e) D1 Q|^2 + 0.5 |sqrt(a) D2 Q|^2."""
+    T, n = Q.shape
+    g = jnp.zeros_like(Q)
+    if T > 1:
+        d1 = e * (Q[1:] - Q[:-1])
+        g = g + jnp.concatenate([-d1, jnp.zeros((1, n), Q.dtype)]) + jnp.concatenate([jnp.zeros((1, n), Q.dtype), d1])
+    if T > 2:
+        d2 = a * (Q[2:] - 2 * Q[1:-1] + Q[:-2])
+        z1, z2 = jnp.zeros((1, n), Q.dtype), jnp.zeros((2, n), Q.dtype)
+        g = g + jnp.concatenate([d2, z2]) - 2 * jnp.concatenate([z1, d2, z1]) + jnp.concatenate([z2, d2])
+    return g
 
 
 class _Problem(eqx.Module):
@@ -134,6 +202,11 @@ class _Problem(eqx.Module):
 def _unit_weights(model: Model, config: SequenceConfig, dtype):
     is_len = np.array([k == "length" for k in model.q_kinds])
     return jnp.where(is_len, config.smooth_px_per_mm, config.smooth_px_per_rad).astype(dtype)
+
+
+def _accel_weights(model: Model, config: SequenceConfig, dtype):
+    is_len = np.array([k == "length" for k in model.q_kinds])
+    return jnp.where(is_len, config.accel_px_per_mm, config.accel_px_per_rad).astype(dtype)
 
 
 def _prior_weights(shape: HandShape | None, config: SequenceConfig, dtype):
@@ -152,13 +225,14 @@ def _total_cost(prob, config, Q, theta):
     r = jax.vmap(lambda q, lm: _frame_residuals(prob, q, theta, lm))(Q, prob.landmarks)
     w = _unit_weights(prob.model, config, Q.dtype)
     smooth = w * (Q[1:] - Q[:-1])
+    accel = _accel_weights(prob.model, config, Q.dtype) * (Q[2:] - 2 * Q[1:-1] + Q[:-2])
     prior = _prior_weights(prob.shape, config, Q.dtype) * (theta - prob.theta0)
     data = 0.5 * jnp.sum(r * r, axis=-1)
-    return jnp.sum(data) + 0.5 * jnp.sum(smooth * smooth) + 0.5 * jnp.sum(prior * prior), data
+    return (jnp.sum(data) + 0.5 * jnp.sum(smooth * smooth) + 0.5 * jnp.sum(accel * accel)
+            + 0.5 * jnp.sum(prior * prior)), data
 
 
 def _project(prob: _Problem, config: SequenceConfig, Q, theta):
-    from ..solve import StateSpace
 
     space = StateSpace.of(prob.model)
     Q = jax.vmap(lambda q: space.normalize(space.clip(q)))(Q)
@@ -177,7 +251,8 @@ def _solve(prob: _Problem, Q0, config: SequenceConfig):
     w = _unit_weights(prob.model, config, dtype)
     wp = _prior_weights(prob.shape, config, dtype)
     e = w * w
-    count = jnp.concatenate([jnp.ones(1), jnp.full((T - 2,), 2.0), jnp.ones(1)]) if T > 1 else jnp.zeros(1)
+    wa = _accel_weights(prob.model, config, dtype)
+    a = wa * wa
 
     def linearise(Q, theta):
         def one(q, lm):
@@ -188,25 +263,40 @@ def _solve(prob: _Problem, Q0, config: SequenceConfig):
             return f(x), J
         r, J = jax.vmap(one)(Q, prob.landmarks)                     # (T, m), (T, m, n + p)
         Jq, Jt = J[..., :n], J[..., n:]
-        D = jnp.einsum("tri,trj->tij", Jq, Jq) + (count[:, None] * e)[:, :, None] * jnp.eye(n, dtype=dtype)
-        gq = jnp.einsum("tri,tr->ti", Jq, r)
-        dQ = jnp.zeros_like(Q)
-        if T > 1:
-            dQ = jnp.concatenate([jnp.zeros((1, n), dtype), e * (Q[1:] - Q[:-1])]) - jnp.concatenate(
-                [e * (Q[1:] - Q[:-1]), jnp.zeros((1, n), dtype)])
-        gq = gq + dQ
+        D, lo = _pair_blocks(jnp.einsum("tri,trj->tij", Jq, Jq), e, a)
+        gq = jnp.einsum("tri,tr->ti", Jq, r) + _smooth_gradient(Q, e, a)
         Bm = jnp.einsum("tri,trj->tij", Jq, Jt)
         C = jnp.einsum("tri,trj->ij", Jt, Jt) + jnp.diag(wp * wp)
         gt = jnp.einsum("tri,tr->i", Jt, r) + wp * wp * (theta - prob.theta0)
-        return D, gq, Bm, C, gt
+        return D, lo, gq, Bm, C, gt
+
+    M = _pairs(T)
+
+    def paired(X):          # (T, n, k) -> (M, 2n, k), an odd T padded with a zero frame
+        X = jnp.concatenate([X, jnp.zeros((2 * M - T,) + X.shape[1:], X.dtype)])
+        return X.reshape(M, 2 * n, X.shape[-1])
+
+    space = StateSpace.of(prob.model)
+    bounded = jnp.asarray(space.bounded)
 
     def step(Q, theta, lin, lam):
-        D, gq, Bm, C, gt = lin
+        D, lo, gq, Bm, C, gt = lin
         dD = jnp.diagonal(D, axis1=-2, axis2=-1)
         # Guard: a DOF no landmark sees has a zero diagonal; the floor keeps every block SPD.
         Dd = D + lam * jax.vmap(jnp.diag)(jnp.maximum(dD, 1e-9 * jnp.max(dD) + 1e-30))
-        Rhs = jnp.concatenate([-gq[..., None], Bm], axis=-1)        # (T, n, 1 + p)
-        X = _block_tridiag_solve(Dd, e, Rhs)
+        # Active set: an entry at a limit whose descent direction points outside is held this
+        # step (its rows and columns become the identity, its right-hand side 0). Without it the
+        # clipped step of such an entry is rejected again and again (the fist's thumb at its
+        # limits stalled the solve at its step cap; benchmarks/landmarks_devset.py).
+        tol = 1e-9 * jnp.maximum(1.0, jnp.abs(space.lower))
+        held = bounded & (((Q <= space.lower + tol) & (gq > 0)) | ((Q >= space.upper - tol) & (gq < 0)))
+        free = (~held).astype(dtype)                                # (T, n)
+        fp = paired(free[..., None])[..., 0]                        # (M, 2n); padding: held
+        Dd = Dd * fp[:, :, None] * fp[:, None, :] + jax.vmap(jnp.diag)(1 - fp)
+        lo = lo * fp[1:, :, None] * fp[:-1, None, :]
+        Bm = Bm * free[..., None]
+        Rhs = jnp.concatenate([-gq[..., None], Bm], axis=-1) * free[..., None]     # (T, n, 1 + p)
+        X = _block_tridiag_solve(Dd, lo, paired(Rhs)).reshape(2 * M, n, -1)[:T]
         xg, XB = X[..., 0], X[..., 1:]
         if p:
             dC = jnp.diagonal(C)
@@ -246,7 +336,8 @@ def _solve(prob: _Problem, Q0, config: SequenceConfig):
 
 
 def fit_sequence(model: Model, cameras, landmarks: Landmarks, q_init, *, shape: HandShape | None = None,
-                 theta0=None, config: SequenceConfig | None = None) -> SequenceResult:
+                 theta0=None, config: SequenceConfig | None = None, lmap: LandmarkMap | None = None
+                 ) -> SequenceResult:
     """Fit a whole sequence of landmark frames as one problem (see the module docstring).
 
     Args:
@@ -256,6 +347,7 @@ def fit_sequence(model: Model, cameras, landmarks: Landmarks, q_init, *, shape: 
             keeps the model's shape.
         theta0: starting (and prior) shape; default the nominal (scales 1, offsets 0).
         config: a :class:`SequenceConfig`.
+        lmap: where the landmarks sit on the model (default ``landmark_map(model)``: skin tips).
 
     Raises:
         InputError: shapes or non-finite starts.
@@ -278,6 +370,6 @@ def fit_sequence(model: Model, cameras, landmarks: Landmarks, q_init, *, shape: 
             raise InputError(f"theta0: expected {shape.size} finite values, got shape {th.shape}")
     dtype = jnp.asarray(0.0).dtype
     lm = jax.tree_util.tree_map(lambda x: jnp.asarray(x, dtype=bool if x.dtype == bool else dtype), landmarks)
-    prob = _Problem(model=model, cameras=rig, lmap=landmark_map(model), shape=shape, landmarks=lm,
-                    theta0=jnp.asarray(th))
+    lmap = landmark_map(model) if lmap is None else lmap
+    prob = _Problem(model=model, cameras=rig, lmap=lmap, shape=shape, landmarks=lm, theta0=jnp.asarray(th))
     return _solve(prob, jnp.asarray(Q0), config)

@@ -1,0 +1,150 @@
+"""Starting a whole-sequence fit without falling into one camera's mirror branches.
+
+Seen by one camera, a finger flexed towards the camera and one flexed as far away from it
+project almost alike, and a fit started from the previous frame keeps whichever branch it began
+in, even where the joint limits later make that branch fit badly. This module gives the
+sequence solve a start that chooses the branch from the whole sequence:
+
+1. every frame is fitted from several starts at once (:func:`joint_starts`: the model's default,
+   the joints at fixed fractions of their ranges and at seeded uniform draws within them, plus
+   any caller candidates, such as the frame-by-frame track), one batched solve of frames x starts
+   problems;
+2. the joints split into independent blocks (:func:`independent_blocks`): two joints are in one
+   block when some landmark moves with both. With the palm fixed each finger is a block, so each
+   finger takes its branch from whichever start found it, whatever the others did; a free palm
+   moves every landmark, so all joints form one block;
+3. per block, the path through the frames' candidates that minimises the landmark cost of the
+   block's points plus the first-difference smoothness term of
+   :class:`~jaxhand.landmarks.SequenceConfig` (the sequence objective without its shape terms),
+   found by dynamic programming (Viterbi: O(frames x candidates^2) per block).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..camera import as_rig
+from ..model import Model
+from ._convention import LandmarkMap
+from ._fit import BatchConfig, _as_float_landmarks, fit_landmarks_batch
+from ._residuals import LandmarkArgs, Landmarks, _dependence, landmark_residuals
+from ._sequence import SequenceConfig, _unit_weights
+
+__all__ = ["joint_starts", "independent_blocks", "smoothest_paths", "START_FRACTIONS"]
+
+#: Fractions of each joint's range at which :func:`joint_starts` places the joints.
+START_FRACTIONS = (0.1, 0.3, 0.5, 0.7, 0.9)
+
+
+def joint_starts(model: Model, fractions=START_FRACTIONS, *, draws: int = 16, seed: int = 0) -> np.ndarray:
+    """(1 + len(fractions) + draws, n_q) starts: the default state, every joint (not the base) at
+    ``lower + f * (upper - lower)`` for each fraction f, then ``draws`` states with each joint
+    uniform in its range (``numpy.random.default_rng(seed)``). Joints with an infinite limit
+    keep their default. The draws mix the joints of one chain (a thumb's abduction against its
+    flexion), which the common fractions do not."""
+    q0 = np.asarray(model.q_default, float)
+    lo, hi = np.asarray(model.q_lower, float), np.asarray(model.q_upper, float)
+    joint = np.zeros(model.n_q, bool)
+    joint[model.n_base_q:] = True
+    joint &= np.isfinite(lo) & np.isfinite(hi)
+    out = [q0]
+    for f in fractions:
+        out.append(np.where(joint, lo + f * (hi - lo), q0))
+    u = np.random.default_rng(seed).uniform(size=(draws, model.n_q))
+    out.extend(np.where(joint, lo + u * (np.where(joint, hi, 0.0) - np.where(joint, lo, 0.0)), q0))
+    return np.stack(out)
+
+
+def independent_blocks(model: Model, lmap: LandmarkMap) -> list[np.ndarray]:
+    """The q entries in groups no landmark couples (connected components of "moves a common
+    point"); q entries that move no landmark are left out. Each group: sorted q indices."""
+    dep = _dependence(model, lmap)                     # (21, n_q)
+    parent = list(range(model.n_q))
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for row in dep:
+        ks = np.nonzero(row)[0]
+        for k in ks[1:]:
+            parent[root(k)] = root(ks[0])
+    seen = dep.any(axis=0)
+    groups: dict[int, list[int]] = {}
+    for k in np.nonzero(seen)[0]:
+        groups.setdefault(root(int(k)), []).append(int(k))
+    return [np.array(sorted(g)) for g in groups.values()]
+
+
+@eqx.filter_jit
+def _point_costs(model, rig, lmap, landmarks, Q):
+    """(B, 21) squared landmark residuals per point (all cameras and the 3-D entries)."""
+    n = len(rig)
+
+    def one(q, lm):
+        r = landmark_residuals(q, LandmarkArgs(model=model, cameras=rig, lmap=lmap, landmarks=lm))
+        r2 = jnp.sum(r[: 2 * 21 * n].reshape(n, 21, 2) ** 2, axis=(0, 2))
+        return r2 + jnp.sum(r[2 * 21 * n:].reshape(21, 3) ** 2, axis=-1)
+
+    return jax.vmap(one)(Q, landmarks)
+
+
+def _viterbi(unary: np.ndarray, Q: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Candidate index per frame minimising sum_t unary[t, k_t] + 0.5 |w (Q[t, k_t] - Q[t-1, k_{t-1}])|^2.
+
+    unary (T, K); Q (T, K, m) the block's entries; w (m,) the smoothness weights."""
+    T, K = unary.shape
+    V = unary[0].copy()
+    back = np.zeros((T, K), int)
+    for t in range(1, T):
+        d = (Q[t][None, :, :] - Q[t - 1][:, None, :]) * w           # (K prev, K now, m)
+        total = V[:, None] + 0.5 * np.sum(d * d, axis=-1)
+        back[t] = np.argmin(total, axis=0)
+        V = unary[t] + total[back[t], np.arange(K)]
+    path = np.zeros(T, int)
+    path[-1] = int(np.argmin(V))
+    for t in range(T - 1, 0, -1):
+        path[t - 1] = back[t, path[t]]
+    return path
+
+
+def smoothest_paths(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkMap, *, candidates=None,
+                    config: SequenceConfig | None = None, batch_config: BatchConfig | None = None,
+                    fractions=START_FRACTIONS, draws: int = 16) -> np.ndarray:
+    """(T, n_q) start of a sequence fit: per independent block of joints, the smoothest low-cost
+    path through every frame's candidate fits (see the module docstring).
+
+    Args:
+        landmarks: (T, cams, 21, 2) batched :class:`Landmarks`.
+        candidates: optional (C, T, n_q) states also offered per frame (refined like the starts);
+            the starts of a moving base take their base entries from the first candidate.
+        config: the smoothness weights (:class:`~jaxhand.landmarks.SequenceConfig`).
+        fractions, draws: the starts of :func:`joint_starts` (seed 0).
+    """
+    rig = as_rig(cameras)
+    config = SequenceConfig() if config is None else config
+    T = landmarks.px.shape[0]
+    fixed = joint_starts(model, fractions, draws=draws)
+    starts = np.array(np.broadcast_to(fixed, (T,) + fixed.shape))
+    if candidates is not None:
+        cand = np.asarray(candidates, float).transpose(1, 0, 2)              # (T, C, n_q)
+        starts[..., :model.n_base_q] = cand[:, :1, :model.n_base_q]          # the joint starts ride on the palm
+        starts = np.concatenate([cand, starts], axis=1)
+    K = starts.shape[1]
+    lm = jax.tree_util.tree_map(lambda x: jnp.repeat(x, K, axis=0), _as_float_landmarks(landmarks))
+    res = fit_landmarks_batch(model, rig, lm, starts.reshape(T * K, model.n_q), config=batch_config, lmap=lmap)
+    Q = np.asarray(res.q).reshape(T, K, model.n_q)
+    cost = np.asarray(_point_costs(model, rig, lmap, lm, res.q)).reshape(T, K, 21)
+    dep = _dependence(model, lmap)
+    w = np.asarray(_unit_weights(model, config, jnp.asarray(0.0).dtype))
+    q = Q[:, 0].copy()
+    for block in independent_blocks(model, lmap):
+        points = dep[:, block].any(axis=1)
+        path = _viterbi(0.5 * cost[..., points].sum(-1), Q[..., block], w[block])
+        q[:, block] = Q[np.arange(T), path][:, block]
+    return q
