@@ -9,6 +9,8 @@
 - the config section round-trips and rejects bad values; the host rules (choose, runners-up).
 """
 
+from pathlib import Path
+
 import cv2
 import equinox as eqx
 import jax.numpy as jnp
@@ -20,7 +22,7 @@ import jaxhand as jh
 from jaxhand.camera import look_at_rotation
 from jaxhand.features import empty_features, features_from_pose
 from jaxhand.filter import ghk_init
-from jaxhand.io import FrameSource
+from jaxhand.io import FrameSource, load_devset
 from jaxhand.render import make_preset
 from jaxhand.residuals import make_residual_args, residual_jacobian
 from jaxhand.track import (
@@ -37,6 +39,8 @@ from jaxhand.track import (
 )
 from jaxhand.track._compiled import FEATURE_FIELDS, FrameProgram
 from jaxhand.track._hypotheses import HypothesisProgram, choose, flip_starts, runners_up
+
+DEVSET = Path(__file__).resolve().parent.parent / "data" / "mujoco"
 
 _flips = eqx.filter_jit(flip_starts)
 
@@ -281,3 +285,39 @@ def test_choose_and_runners_up():
     np.testing.assert_array_equal(runners_up(qs, total, 1, 2, 0.9, 0.1, angle), [[1.0, 1.0]])
     np.testing.assert_array_equal(runners_up(qs, total, 1, 2, 0.4, 0.1, angle), [[1.0, 1.0], [0.0, 0.0]])
     assert runners_up(qs, total, 1, 0, 0.4, 0.1, angle).shape == (0, 2)
+
+
+def test_fold_starts_reflect_a_finger_hinge_across_the_image_plane():
+    """An orthographic camera looking at the palm, fingers unabducted: every finger hinge turns
+    about an axis across the view, so reflecting it across its fold leaves the image of the link
+    it moves where it was and reverses the link's depth."""
+    from jaxhand.kinematics import pose
+    from jaxhand.track._hypotheses import _fold_joints, fold_starts
+
+    model = load_devset(DEVSET / "open_close").model
+    q = np.zeros(model.n_q)
+    for i, name in enumerate(model.q_names):
+        if not name.startswith("thumb") and name.endswith(("_flex", "_pip", "_dip")):
+            q[i] = np.radians(25.0)
+    cam = jh.Orthographic.fit(np.asarray(pose(model, jnp.asarray(q)).link_end), R=np.diag([1.0, -1.0, -1.0]))
+    joints, _, links = _fold_joints(model)
+    starts = np.asarray(fold_starts(model, cam, jnp.asarray(q), len(joints)))
+    before = pose(model, jnp.asarray(q))
+    checked = 0
+    for s in starts:
+        moved = np.flatnonzero(np.abs(s - q) > 1e-12)
+        if len(moved) == 0:
+            continue   # a hinge whose link never lies across the view (abduction, seen along its axis)
+        (changed,) = moved
+        name = model.q_names[changed]
+        at_limit = min(abs(s[changed] - float(model.q_lower[changed])), abs(s[changed] - float(model.q_upper[changed])))
+        if name.startswith("thumb") or name.endswith("_abd") or at_limit < 1e-9:
+            continue   # the thumb's axes are not across the view; a clipped reflection is not exact
+        link = links[list(joints).index(changed)]
+        after = pose(model, jnp.asarray(s))
+        px_before, depth_before = cam.project(before.link_end[link] - before.link_start[link])
+        px_after, depth_after = cam.project(after.link_end[link] - after.link_start[link])
+        np.testing.assert_allclose(np.asarray(px_after), np.asarray(px_before), atol=1e-6)
+        assert float(depth_after - cam.t[2]) == pytest.approx(-float(depth_before - cam.t[2]), abs=1e-6)
+        checked += 1
+    assert checked == 4   # the four MCPs (25 deg -> -25 deg); the PIP/DIP reflections leave their limits
