@@ -27,7 +27,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import REPO, RESULTS, environment, format_table, write_json  # noqa: E402
 
 from jaxhand.io import load_devset, open_frames  # noqa: E402
-from jaxhand.track import ExactFrontEnd, ImageFrontEnd, TrackConfig, Tracker, accuracy_summary, config_to_dict  # noqa: E402,E501
+from jaxhand.track import (  # noqa: E402
+    ExactFrontEnd,
+    ImageFrontEnd,
+    TrackConfig,
+    Tracker,
+    accuracy_summary,
+    config_to_dict,
+    frame_tip_error_px,
+    loss_flag_quality,
+)
 
 SEQUENCES = ("open_close", "index_over_middle", "thumb_opposition", "fast_spread", "wave_two_cameras")
 
@@ -81,7 +90,7 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         images = open_frames(folders, fps=seq.truth.fps)
     tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
     state = tracker.init(seq.truth.q[0])
-    filt, raw, lost, times = [], [], 0, []
+    filt, raw, lost, times, conf, lost_flags = [], [], 0, [], [], []
     blank = [np.zeros(c.size[::-1], np.uint8) for c in cams] if exact else None
     it = zip(*images) if images is not None else iter(lambda: None, 0)
     for k in range(n):
@@ -93,6 +102,8 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         filt.append(rep.q_filtered)
         raw.append(rep.q_solved)
         lost += bool(rep.lost)
+        conf.append(rep.confidence)
+        lost_flags.append(rep.lost)
     qt = np.asarray(seq.truth.q[:n])
     moving = (np.ptp(np.asarray(seq.truth.q), axis=0) > 1e-6) & np.asarray(m.is_angle)
     out = {"frames": n, "lost": lost, "fps": 1.0 / float(np.median(times[1:])) if n > 1 else float("nan")}
@@ -100,7 +111,14 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         e = np.degrees(np.abs(np.asarray(q) - qt))[:, moving]
         out[f"{label}_mean_deg"], out[f"{label}_max_deg"] = float(e.mean()), float(e.max())
         out[f"{label}_tip_mean_px"] = accuracy_summary(m, cams, np.asarray(q), qt)["tip_error_px"]["mean"]
+    out["per_frame_tip_px"] = frame_tip_error_px(m, cams, np.asarray(filt), qt).tolist()
+    out["per_frame_confidence"], out["per_frame_lost"] = [float(c) for c in conf], [bool(x) for x in lost_flags]
+    out["loss_flag"] = loss_flag_quality(out["per_frame_tip_px"], conf, lost_flags)
     return out
+
+
+def _share(x) -> str:
+    return "-" if x is None else f"{100 * x:.0f}%"
 
 
 def main(argv=None) -> None:
@@ -124,9 +142,11 @@ def main(argv=None) -> None:
                 records.append(rec)
                 rows.append([name, setting, rec["features"], f"{r['filtered_mean_deg']:.2f}",
                              f"{r['filtered_max_deg']:.1f}", f"{r['raw_mean_deg']:.2f}", f"{r['raw_max_deg']:.1f}",
-                             str(r["lost"]), f"{r['fps']:.1f}"])
+                             str(r["lost"]), f"{r['fps']:.1f}", _share(r["loss_flag"]["flagged_bad"]),
+                             _share(r["loss_flag"]["flagged_good"])])
                 print(" | ".join(rows[-1]), flush=True)
-    print(format_table(rows, ["sequence", "setting", "features", "mean", "max", "raw mean", "raw max", "lost", "fps"]))
+    print(format_table(rows, ["sequence", "setting", "features", "mean", "max", "raw mean", "raw max", "lost", "fps",
+                              "flagged >8px", "flagged <3px"]))
     if not args.no_json:
         write_json({"environment": environment(), "runs": records}, RESULTS / args.json)
 

@@ -87,6 +87,7 @@ class _StepNumbers(eqx.Module):
     rms_scale_px: Float[Array, ""]
     min_valid_share: Float[Array, ""]
     max_rms_px: Float[Array, ""]
+    min_term_merit: Float[Array, ""]
 
 
 class _Priors(eqx.Module):
@@ -186,6 +187,7 @@ class _Solved(eqx.Module):
     status: Int[Array, ""]
     rms_px: Float[Array, ""]
     valid_share: Float[Array, ""]
+    term_merit: Float[Array, ""]
 
 
 def solve_frame(model: Model, rig: tuple, feats: tuple, q_pred, q_start, build, fit_config, numbers: _StepNumbers,
@@ -216,8 +218,11 @@ def solve_frame(model: Model, rig: tuple, feats: tuple, q_pred, q_start, build, 
     rms = jnp.where(ok, jnp.sqrt(2.0 * jnp.where(ok, cost, 0.0) / n_res), jnp.inf)
     total = sum(f.line_valid.shape[-1] + f.tip_valid.shape[-1] for f in feats)
     share = (n_tips + n_lines).astype(dtype) / max(total, 1)
+    merit = jnp.ones((), dtype)
+    for term in terms:   # the measured terms' agreement with the solve (1 for the others)
+        merit = merit * term.merit(model, rig, q_meas)
     return _Solved(q=q_meas, ok=ok, cost=cost, iterations=result.iterations, status=result.status._value,
-                   rms_px=rms, valid_share=share)
+                   rms_px=rms, valid_share=share, term_merit=merit)
 
 
 def features_ok(feats: tuple) -> Bool[Array, ""]:
@@ -232,6 +237,9 @@ def finish_frame(model: Model, ghk: GHKState, q_last, solved: _Solved, checks_ok
     holds ``q_last`` still)."""
     conf, lost = frame_score(solved.rms_px, solved.valid_share, numbers.rms_scale_px, numbers.min_valid_share,
                              numbers.max_rms_px)
+    # the measured terms (the silhouette) judge the frame too: their merit scales the confidence
+    conf = conf * solved.term_merit
+    lost = lost | (solved.term_merit < numbers.min_term_merit)
     filtered, ghk_next = filter_update(model, ghk, solved.q, numbers.theta, numbers.dt_s, use_filter,
                                        report_solve)
     if hold:
@@ -299,7 +307,7 @@ def step_constants(model: Model, rig: tuple, config: TrackConfig, theta: float, 
     build, fit_config = solver_program(config.solver, config.fit)
     numbers = _StepNumbers(*(jnp.asarray(float(v)) for v in (
         theta, dt_s, config.robust.scale_px, config.robust.gate_scale_px, config.loss.rms_scale_px,
-        config.loss.min_valid_share, config.loss.max_rms_px)))
+        config.loss.min_valid_share, config.loss.max_rms_px, config.loss.min_term_merit)))
     priors = _Priors.of(model, config.prior)
     return (model, rig, build, fit_config, numbers, config.robust.passes, config.filter.enabled, config.loss.hold,
             priors, config.filter.report_solve)

@@ -103,6 +103,9 @@ class LossConfig:
         rms_scale_px: traced, px. The residual RMS at which the confidence halves.
         min_valid_share: traced, in [0, 1]. Below this share of valid feature slots the frame is lost.
         max_rms_px: traced, px. Above this residual RMS the frame is lost.
+        min_term_merit: traced, in [0, 1]. The front end's measured terms (the silhouette term,
+            :attr:`jaxhand.image.ImageConfig.silhouette_term`) scale the confidence by their merit
+            at the solve; below this merit the frame is lost.
         hold: static. On a lost frame report the last good estimate and predict it standing still.
         score_lost, score_good: host, in [0, 1]. The front end's image score (where it gives one:
             :attr:`jaxhand.image.ImageConfig.score`) of the estimate at which the frame is lost,
@@ -116,6 +119,7 @@ class LossConfig:
     rms_scale_px: float = 2.0
     min_valid_share: float = 0.15
     max_rms_px: float = 6.0
+    min_term_merit: float = 0.1
     hold: bool = True
     score_lost: float = 0.801
     score_good: float = 0.981
@@ -126,6 +130,8 @@ class LossConfig:
         _need(0.0 <= self.min_valid_share <= 1.0, "loss.min_valid_share",
               f"must lie in [0, 1], got {self.min_valid_share}")
         _need(self.max_rms_px > 0, "loss.max_rms_px", f"must be > 0, got {self.max_rms_px}")
+        _need(0.0 <= self.min_term_merit <= 1.0, "loss.min_term_merit",
+              f"must lie in [0, 1], got {self.min_term_merit}")
         _need(isinstance(self.hold, bool), "loss.hold", f"expected true or false, got {self.hold!r}")
         _need(isinstance(self.score_relative, bool), "loss.score_relative",
               f"expected true or false, got {self.score_relative!r}")
