@@ -69,6 +69,11 @@ SETTINGS = {
     "silhouette+hyp6+dip": {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False},
                             "filter": {"report_solve": True}, "prior": {"dip_pip_weight": 4.0},
                             "hypotheses": {"flips": 4, "flip_deg": 40.0, "last_solve": True}},
+    # ... and the visible link sides against the image's edges
+    "silhouette+edges+hyp6+dip": {"image": {"silhouette_term": {"weight": 0.5, "edge_weight": 0.5}},
+                                  "loss": {"hold": False}, "filter": {"report_solve": True},
+                                  "prior": {"dip_pip_weight": 4.0},
+                                  "hypotheses": {"flips": 4, "flip_deg": 40.0, "last_solve": True}},
     # ... with 4 starts reflected across their folds instead of the flips
     "silhouette+fold4": {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False},
                          "filter": {"report_solve": True}, "hypotheses": {"folds": 4, "last_solve": True}},

@@ -40,7 +40,7 @@ from .._errors import InputError
 from ..kinematics import all_pills, pose
 from ..model import Model
 from ..priors import AbstractTerm
-from ._foreground import AbstractForeground
+from ._foreground import AbstractForeground, as_grey
 
 __all__ = ["SilhouetteTermConfig", "SilhouetteTerm", "SilhouettePrior", "silhouette_term", "pill_images"]
 
@@ -63,6 +63,13 @@ class SilhouetteTermConfig:
             a threshold does on a bright, cluttered background).
         merit_rms_px: the hypotheses weigh a candidate by ``1 / (1 + (e / merit_rms_px)^2)`` of
             its robust RMS silhouette distance ``e`` (px), besides its edge residuals.
+        edge_weight: square-root weight of the **edge** residuals: each visible point on the
+            sides of each link's image (and on the end of each tip) should lie on an image edge
+            (Canny), ``r = rho(E(p))`` with ``E`` the distance (px) to the nearest edge pixel.
+            This sees the fingers in front of the palm, where the silhouette cannot. 0: off.
+        edge_fractions: where along each link its two sides are compared with the edges.
+        canny_low, canny_high: Canny's hysteresis thresholds (grey levels of the gradient)
+            after a Gaussian blur of ``canny_sigma_px``.
     """
 
     weight: float = 0.0
@@ -72,6 +79,11 @@ class SilhouetteTermConfig:
     min_share: float = 0.002
     max_share: float = 0.6
     merit_rms_px: float = 2.0
+    edge_weight: float = 0.0
+    edge_fractions: tuple[float, ...] = (0.2, 0.4, 0.6, 0.8)
+    canny_low: float = 20.0
+    canny_high: float = 50.0
+    canny_sigma_px: float = 1.0
 
     def __post_init__(self):
         def need(cond, field, msg):
@@ -87,28 +99,68 @@ class SilhouetteTermConfig:
         need(0 <= self.min_share < self.max_share <= 1, "min_share/max_share",
              f"need 0 <= min_share < max_share <= 1, got {self.min_share!r}, {self.max_share!r}")
         need(self.merit_rms_px > 0, "merit_rms_px", f"need > 0 px, got {self.merit_rms_px!r}")
+        need(self.edge_weight >= 0, "edge_weight", f"need >= 0 (0: off), got {self.edge_weight!r}")
+        need(len(self.edge_fractions) >= 1 and all(0 < f < 1 for f in self.edge_fractions), "edge_fractions",
+             f"need fractions in (0, 1), got {self.edge_fractions!r}")
+        need(0 <= self.canny_low <= self.canny_high, "canny_low/canny_high",
+             f"need 0 <= low <= high, got {self.canny_low!r}, {self.canny_high!r}")
+        need(self.canny_sigma_px >= 0, "canny_sigma_px", f"need >= 0 px, got {self.canny_sigma_px!r}")
 
     @property
     def enabled(self) -> bool:
-        return self.weight > 0
+        return self.weight > 0 or self.edge_weight > 0
 
 
 def _rho(d, scale):
     return d / (1.0 + (d / scale) ** 2) ** 0.25
 
 
-def pill_images(model: Model, camera, q: Float[ArrayLike, " nq"]) -> tuple[Array, Array, Array, Array]:
-    """Every pill's image (links, then occluders): start and end pixels (pills, 2) and the
-    radii (px) of its end spheres there (pills,), from the camera's local scale at each end."""
+def _pill_geometry(model: Model, camera, q) -> tuple[Array, ...]:
     pills = all_pills(model, pose(model, q))
-    a, _ = camera.project(pills.start)
-    b, _ = camera.project(pills.end)
+    a, za = camera.project(pills.start)
+    b, zb = camera.project(pills.end)
 
     def scale(p):
         J = camera.pixel_jacobian(p)
         return jnp.abs(jnp.linalg.det(J @ jnp.swapaxes(J, -1, -2))) ** 0.25
 
-    return a, b, pills.radius_mm * scale(pills.start), pills.radius_mm * scale(pills.end)
+    return a, b, pills.radius_mm * scale(pills.start), pills.radius_mm * scale(pills.end), za, zb
+
+
+def pill_images(model: Model, camera, q: Float[ArrayLike, " nq"]) -> tuple[Array, Array, Array, Array]:
+    """Every pill's image (links, then occluders): start and end pixels (pills, 2) and the
+    radii (px) of its end spheres there (pills,), from the camera's local scale at each end."""
+    return _pill_geometry(model, camera, q)[:4]
+
+
+def visible_outline(model: Model, geometry: tuple, fractions) -> tuple[Array, Array]:
+    """Points on the sides of every link's image at ``fractions``, then on the end of every
+    tip, and which of them no nearer pill covers (a point whose pixel lies more than half a
+    pixel inside another pill whose axis is nearer there by over 2 mm; the mask carries no
+    derivative)."""
+    a, b, ra, rb, za, zb = geometry
+    n_links = model.n_links
+    al, bl, ral, rbl = a[:n_links], b[:n_links], ra[:n_links], rb[:n_links]
+    u = bl - al
+    u = u / jnp.sqrt(jnp.sum(u * u, -1) + 1e-9)[:, None]
+    normal = jnp.stack([-u[:, 1], u[:, 0]], -1)
+    f = jnp.asarray(fractions, a.dtype)
+    centre = al[:, None] + f[None, :, None] * (bl - al)[:, None]
+    r = (ral[:, None] + f[None] * (rbl - ral)[:, None])[..., None]
+    tips = np.array(model.tip_links, dtype=int)
+    pts = jnp.concatenate([(centre + r * normal[:, None]).reshape(-1, 2), (centre - r * normal[:, None]).reshape(-1, 2),
+                           bl[tips] + rbl[tips, None] * u[tips]])
+    own = np.concatenate([np.repeat(np.arange(n_links), len(fractions))] * 2 + [tips])
+    depth = jnp.concatenate([(za[:n_links, None] + f[None] * (zb - za)[:n_links, None]).reshape(-1)] * 2
+                            + [zb[tips]])
+    g = jax.lax.stop_gradient((pts, a, b, ra, rb, za, zb, depth))
+    p, a, b, ra, rb, za, zb, depth = g
+    ab = b - a
+    t = jnp.clip(jnp.sum((p[:, None] - a[None]) * ab[None], -1) / (jnp.sum(ab * ab, -1)[None] + 1e-9), 0.0, 1.0)
+    inside = pill_distances(p, a, b, ra, rb) < -0.5
+    nearer = za[None] + t * (zb - za)[None] < depth[:, None] - 2.0
+    others = np.arange(a.shape[0])[None] != own[:, None]
+    return pts, ~jnp.any(inside & nearer & others, axis=1)
 
 
 def _pill_distance(p, a, b, ra, rb):
@@ -171,30 +223,40 @@ class SilhouettePrior(eqx.Module):
     camera: eqx.Module
     term: SilhouetteTerm
 
-    def distances(self, q) -> tuple[Array, Array, Array, Array]:
-        """The unweighted signed distances (px) and their masks: outline-to-model, model-to-foreground."""
+    def distances(self, q) -> tuple[tuple[Array, Array, Array], ...]:
+        """The unweighted distances (px), their masks and weights, block by block: outline to
+        model, model to foreground, and (when on) visible link sides to the nearest image edge."""
         t = self.term
-        a, b, ra, rb = pill_images(self.model, self.camera, q)
+        geometry = _pill_geometry(self.model, self.camera, q)
+        a, b, ra, rb = geometry[:4]
+        height, width = t.sdf.shape
+
+        def in_image(p):
+            return (p[:, 0] >= 0) & (p[:, 0] <= width - 1) & (p[:, 1] >= 0) & (p[:, 1] <= height - 1)
+
+        def read(grid, p):
+            return map_coordinates(grid, [p[:, 1], p[:, 0]], order=1, mode="nearest")
+
         covered = nearest_pill_distance(t.contour, a, b, ra, rb)
         pts = pill_outlines(a, b, ra, rb, t.fractions)
-        height, width = t.sdf.shape
-        in_image = (pts[:, 0] >= 0) & (pts[:, 0] <= width - 1) & (pts[:, 1] >= 0) & (pts[:, 1] <= height - 1)
-        outside = jax.nn.relu(map_coordinates(t.sdf, [pts[:, 1], pts[:, 0]], order=1, mode="nearest"))
-        return covered, t.contour_valid, outside, in_image & t.active
+        blocks = [(covered, t.contour_valid, t.weight),
+                  (jax.nn.relu(read(t.sdf, pts)), in_image(pts) & t.active, t.weight)]
+        if t.edges is not None:
+            pts, visible = visible_outline(self.model, geometry, t.edge_fractions)
+            blocks.append((read(t.edges, pts), visible & in_image(pts), t.edge_weight))
+        return tuple(blocks)
 
     def __call__(self, q: Float[ArrayLike, " nq"]) -> Float[Array, " r"]:
-        covered, c_ok, outside, o_ok = self.distances(q)
-        s, w = self.term.scale_px, self.term.weight
-        return jnp.concatenate([w * jnp.where(c_ok, _rho(covered, s), 0.0),
-                                w * jnp.where(o_ok, _rho(outside, s), 0.0)])
+        s = self.term.scale_px
+        return jnp.concatenate([w * jnp.where(ok, _rho(d, s), 0.0) for d, ok, w in self.distances(q)])
 
     def rms_px(self, q) -> Float[Array, ""]:
         """The robust RMS distance (px) of the valid residuals (0 when there are none)."""
-        covered, c_ok, outside, o_ok = self.distances(q)
+        blocks = self.distances(q)
         s = self.term.scale_px
-        total = (jnp.sum(jnp.where(c_ok, _rho(covered, s) ** 2, 0.0))
-                 + jnp.sum(jnp.where(o_ok, _rho(outside, s) ** 2, 0.0)))
-        count = (jnp.sum(c_ok) + jnp.sum(o_ok)).astype(total.dtype)
+        blocks = [(d, ok & (w > 0)) for d, ok, w in blocks]   # only the blocks that are on
+        total = sum(jnp.sum(jnp.where(ok, _rho(d, s) ** 2, 0.0)) for d, ok in blocks)
+        count = sum(jnp.sum(ok) for _, ok in blocks).astype(total.dtype)
         return jnp.sqrt(total / jnp.maximum(count, 1.0))   # Guard: an inactive term gives 0, not NaN
 
 
@@ -208,7 +270,9 @@ class SilhouetteTerm(AbstractTerm):
         contour: (N, 2) points (x, y) on the foreground's outline.
         contour_valid: (N,) which of them are real (the rest pad to N).
         active: whether the frame's foreground was usable (else the term is all zeros).
-        weight, scale_px, merit_rms_px: :class:`SilhouetteTermConfig`'s numbers (traced).
+        weight, scale_px, merit_rms_px, edge_weight: :class:`SilhouetteTermConfig`'s numbers (traced).
+        edges: (H, W) distance (px) to the nearest Canny edge pixel, or None (edges off).
+        edge_fractions: :attr:`SilhouetteTermConfig.edge_fractions` (static).
     """
 
     judged = True
@@ -221,6 +285,9 @@ class SilhouetteTerm(AbstractTerm):
     weight: Float[Array, ""]
     scale_px: Float[Array, ""]
     merit_rms_px: Float[Array, ""]
+    edge_weight: Float[Array, ""]
+    edges: Float[Array, "H W"] | None = None
+    edge_fractions: tuple[float, ...] = eqx.field(static=True, default=())
 
     def bind(self, model: Model, rig: tuple) -> SilhouettePrior:
         return SilhouettePrior(model=model, camera=rig[self.camera], term=self)
@@ -266,8 +333,18 @@ def silhouette_term(image, foreground: AbstractForeground, camera: int, config: 
         n = config.contour_points
         sdf, contour, valid = np.zeros(mask.shape), np.zeros((n, 2)), np.zeros(n, bool)
     dtype = jnp.asarray(0.0).dtype if dtype is None else dtype
+    edges = None
+    if config.edge_weight > 0:
+        grey = as_grey(image)
+        if config.canny_sigma_px > 0:
+            grey = cv2.GaussianBlur(grey, (0, 0), config.canny_sigma_px)
+        found = cv2.Canny(grey, config.canny_low, config.canny_high, L2gradient=True)
+        edges = jnp.asarray(cv2.distanceTransform(np.where(found > 0, 0, 255).astype(np.uint8), cv2.DIST_L2,
+                                                  cv2.DIST_MASK_PRECISE), dtype)
     return SilhouetteTerm(camera=camera, fractions=tuple(float(f) for f in config.outline_fractions),
                           sdf=jnp.asarray(sdf, dtype), contour=jnp.asarray(contour, dtype),
                           contour_valid=jnp.asarray(valid), active=jnp.asarray(active),
                           weight=jnp.asarray(config.weight, dtype), scale_px=jnp.asarray(config.scale_px, dtype),
-                          merit_rms_px=jnp.asarray(config.merit_rms_px, dtype))
+                          merit_rms_px=jnp.asarray(config.merit_rms_px, dtype),
+                          edge_weight=jnp.asarray(config.edge_weight, dtype), edges=edges,
+                          edge_fractions=tuple(float(f) for f in config.edge_fractions))
