@@ -196,7 +196,7 @@ class HypothesisConfig:
     """Several starts per frame, solved in one vectorised call, the best kept (thesis ch. 7, "a
     bank of filters"; :mod:`jaxhand.track._hypotheses`). All off by default: one solve from the
     prediction, as the thesis does. The starts: the prediction, then ``flips``, ``folds``,
-    ``last_solve``, the carried runners-up, the caller's proposals and, after a lost frame, ``recover``.
+    ``last_solve``, ``rest``, the carried runners-up, the caller's proposals and, after a lost frame, ``recover``.
 
     Attributes:
         flips: static. Starts from the prediction with one of its most poorly observed joints
@@ -207,6 +207,8 @@ class HypothesisConfig:
             its link lies across the first camera's viewing ray), the hinges nearest their fold
             first: the depth ambiguity of one view (``fold_starts`` in :mod:`jaxhand.track._hypotheses`).
         last_solve: static. Also start from the last frame's solve.
+        rest: static. Also start from the model's default joint angles (with the predicted base):
+            a finger that a fast motion left folded the wrong way gets a start far from it.
         carry: static. Runners-up carried to the next frame as extra starts (at most this many).
         carry_margin: host, in [0, 1]. A runner-up is carried when its merit is at least this
             share of the winner's (the score could not decide between them).
@@ -222,6 +224,7 @@ class HypothesisConfig:
     flip_deg: float = 25.0
     folds: int = 0
     last_solve: bool = False
+    rest: bool = False
     carry: int = 0
     carry_margin: float = 0.9
     carry_min_deg: float = 5.0
@@ -233,8 +236,9 @@ class HypothesisConfig:
     def __post_init__(self):
         for name in ("flips", "folds", "carry", "recover", "seed"):
             _count(getattr(self, name), f"hypotheses.{name}")
-        _need(isinstance(self.last_solve, bool), "hypotheses.last_solve",
-              f"expected true or false, got {self.last_solve!r}")
+        for name in ("last_solve", "rest"):
+            _need(isinstance(getattr(self, name), bool), f"hypotheses.{name}",
+                  f"expected true or false, got {getattr(self, name)!r}")
         for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm"):
             value = getattr(self, name)
             _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
@@ -245,7 +249,7 @@ class HypothesisConfig:
     @property
     def enabled(self) -> bool:
         """Whether any start besides the prediction is configured (static)."""
-        return bool(self.flips or self.folds or self.last_solve or self.carry or self.recover)
+        return bool(self.flips or self.folds or self.last_solve or self.rest or self.carry or self.recover)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -42,7 +42,7 @@ __all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "image_merit", "ch
            "extra_starts", "LABELS"]
 
 #: The kinds of start, as :attr:`StepReport.hypothesis` names the winner's.
-LABELS = ("prediction", "flip", "fold", "last_solve", "carried", "proposal", "recover")
+LABELS = ("prediction", "flip", "fold", "last_solve", "rest", "carried", "proposal", "recover")
 
 
 def _flippable(model: Model) -> np.ndarray:
@@ -276,7 +276,7 @@ def check_proposals(model: Model, proposals, frame: int) -> np.ndarray:
 def extra_starts(model: Model, hyp: HypothesisConfig, q_pred: np.ndarray, q_solved: np.ndarray | None,
                  carried: np.ndarray | None, proposals: np.ndarray | None, q_good: np.ndarray | None, frame: int
                  ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
-    """The host's extra starts of a frame, their validity and labels: the last solve, the carried
+    """The host's extra starts of a frame, their validity and labels: the last solve, the rest pose, the carried
     runners-up (padded to ``hyp.carry`` slots with the prediction, not valid, so the program's
     shape does not change), the proposals and the recovery starts around ``q_good`` (None: the
     frame before was not lost)."""
@@ -290,6 +290,10 @@ def extra_starts(model: Model, hyp: HypothesisConfig, q_pred: np.ndarray, q_solv
 
     if hyp.last_solve:
         add(q_pred if q_solved is None else q_solved, "last_solve", q_solved is not None)
+    if hyp.rest:   # the model's default joint angles, the base where the prediction has it
+        rest = np.asarray(model.q_default, float).copy()
+        rest[:model.n_base_q] = q_pred[:model.n_base_q]
+        add(rest, "rest")
     if hyp.carry:
         have = np.zeros((0, model.n_q)) if carried is None else carried[:hyp.carry]
         add(have, "carried")
