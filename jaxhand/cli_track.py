@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ._errors import InputError
-from .track import TrackConfig, load_track_config
+from .track import PRESETS, TrackConfig, load_track_config
 
 __all__ = ["register", "run_demo", "print_summary", "track_config_from_args"]
 
@@ -38,6 +38,10 @@ def register(sub) -> None:
                         "frame; the tracker restarts there at the filtered pose with zero velocity")
     p.add_argument("--config", metavar="TOML", help="tracking settings (a TrackConfig TOML file, see "
                                                     "jaxhand.save_track_config); the flags below override it")
+    p.add_argument("--preset", choices=tuple(PRESETS),
+                   help="named settings on top of --config or the defaults: 'robust' for images jaxhand did not "
+                        "draw (the silhouette term, six starts per frame; slower), 'thesis' the documents' "
+                        "tracker (default: thesis)")
     defaults = TrackConfig()   # --help shows the defaults of the config itself
     p.add_argument("--method",
                    help=f"feature search: {' | '.join(SEARCH_NAMES)} (default: {defaults.image.method})")
@@ -198,6 +202,8 @@ def track_config_from_args(args) -> TrackConfig:
     """The run's :class:`~jaxhand.TrackConfig`: ``--config`` (or the defaults), then every flag
     given on the command line on top of it."""
     config = load_track_config(args.config) if args.config else TrackConfig()
+    if args.preset:
+        config = config.preset(args.preset)
     changes: dict = {}
     for attr, flag, section, key in _FLAG_FIELDS:
         value = getattr(args, attr)

@@ -343,3 +343,14 @@ def test_track_a_dev_set_folder(tmp_path, capsys):
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert summary["frames"] == 3 and summary["fps_input"] == 30.0 and "accuracy_filtered" in summary
     assert summary["accuracy_filtered"]["joint_error_deg"]["mean"] < 5.0
+
+
+@pytest.mark.slow
+def test_track_a_dev_set_folder_with_the_robust_preset(tmp_path):
+    assert main(["track", "data/mujoco/fast_spread", "--out", str(tmp_path / "o"), "--max-frames", "4",
+                 "--no-video", "--preset", "robust", "--steps", "15"]) == 0
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    config = summary["config"]
+    assert config["image"]["silhouette_term"]["weight"] == 0.5 and config["hypotheses"]["rest"] is True
+    assert config["fit"]["max_steps"] == 15   # a flag still overrides the preset
+    assert summary["accuracy_filtered"]["joint_error_deg"]["mean"] < 3.0

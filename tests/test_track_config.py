@@ -124,3 +124,13 @@ def test_theta_per_frame_follows_the_rate():
     assert FilterConfig().theta_per_frame(0.1) == pytest.approx(0.85 ** 2.5)
     assert FilterConfig(theta_rate_hz=None).theta_per_frame(0.1) == 0.85
     assert FilterConfig(theta_rate_hz=None) == FilterConfig(theta_rate_hz=0.0)
+
+
+def test_presets_apply_named_changes_and_unknown_names_are_listed():
+    assert TrackConfig().preset("thesis") == TrackConfig()
+    robust = TrackConfig().preset("robust")
+    assert robust.image.silhouette_term.weight == 0.5 and robust.hypotheses.flips == 4 and robust.hypotheses.rest
+    assert robust.filter.report_solve and not robust.loss.hold and robust.prior.dip_pip_weight == 4.0
+    assert config_from_dict(config_to_dict(robust)) == robust
+    with pytest.raises(jh.InputError, match="preset: unknown preset 'fast'; valid: thesis, robust"):
+        TrackConfig().preset("fast")

@@ -14,6 +14,7 @@
 
 from ._compiled import reweight
 from ._config import (
+    PRESETS,
     TRACK_CONFIG_VERSION,
     FilterConfig,
     HypothesisConfig,
@@ -33,7 +34,7 @@ from ._tracker import StepReport, Tracker, TrackState
 
 __all__ = [
     "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig", "LandmarkConfig",
-    "TRACK_CONFIG_VERSION",
+    "TRACK_CONFIG_VERSION", "PRESETS",
     "config_to_dict", "config_from_dict", "config_to_toml", "save_track_config", "load_track_config",
     "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd",
     "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary", "frame_tip_error_px",

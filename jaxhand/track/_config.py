@@ -25,7 +25,7 @@ from ..solve import FitConfig, solver_named
 from ..solve.internal import check_config
 
 __all__ = ["TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig",
-           "LandmarkConfig", "config_to_dict", "config_from_dict", "TRACK_CONFIG_VERSION"]
+           "LandmarkConfig", "config_to_dict", "config_from_dict", "TRACK_CONFIG_VERSION", "PRESETS"]
 
 #: The ``format_version`` written into (and required of) saved tracking configs.
 TRACK_CONFIG_VERSION = 1
@@ -362,6 +362,28 @@ class TrackConfig:
     def merged(self, changes: dict) -> TrackConfig:
         """A copy with the nested mapping ``changes`` (as in :func:`config_to_dict`) applied."""
         return config_from_dict(_merge(config_to_dict(self), changes))
+
+    def preset(self, name: str) -> TrackConfig:
+        """A copy with the named :data:`PRESETS` entry applied (``TrackConfig().preset("robust")``).
+
+        Raises:
+            InputError: an unknown name (the message lists the presets).
+        """
+        _need(name in PRESETS, "preset", f"unknown preset {name!r}; valid: {', '.join(PRESETS)}")
+        return self.merged(PRESETS[name])
+
+
+#: Named changes to the defaults. "thesis": the documents' tracker as it is (one start, the
+#: g-h-k filter reported, a lost frame held). "robust": for images jaxhand did not draw: the
+#: silhouette term in every solve and as the judge of six starts (the prediction, four flips of
+#: the least observed joints, the last solve) plus the rest pose, a weak DIP-PIP coupling, the
+#: solve reported (the filter only predicts) and no hold (benchmarks/README.md, dev-set tables).
+PRESETS: dict[str, dict] = {
+    "thesis": {},
+    "robust": {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False},
+               "filter": {"report_solve": True}, "prior": {"dip_pip_weight": 4.0},
+               "hypotheses": {"flips": 4, "flip_deg": 40.0, "last_solve": True, "rest": True}},
+}
 
 
 def _merge(base: dict, changes: dict) -> dict:
