@@ -28,6 +28,7 @@ from _common import REPO, RESULTS, environment, format_table, write_json  # noqa
 
 from jaxhand.io import load_devset, open_frames  # noqa: E402
 from jaxhand.track import (  # noqa: E402
+    PRESETS,
     ExactFrontEnd,
     ImageFrontEnd,
     TrackConfig,
@@ -43,6 +44,8 @@ SEQUENCES = ("open_close", "index_over_middle", "thumb_opposition", "fast_spread
 #: Named settings: changes to the default TrackConfig (as in TrackConfig.merged).
 SETTINGS = {
     "default": {},
+    # TrackConfig.preset("robust")
+    "robust": PRESETS["robust"],
     # a fixed-sigma temporal prior around the g-h-k prediction, the g-h-k update reported
     "temporal5+dip": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "dip_pip_weight": 10.0}},
     # the solve with the prior reported (the filter only predicts)

@@ -55,6 +55,7 @@ from jaxhand.image import ImageConfig  # noqa: E402
 from jaxhand.io import load_devset  # noqa: E402
 from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402
 from jaxhand.track import (  # noqa: E402
+    PRESETS,
     ExactFrontEnd,
     ImageFrontEnd,
     TrackConfig,
@@ -185,9 +186,10 @@ def devset(names: list[str], args) -> dict:
     """Track each dev-set sequence with the default settings, image and exact features (0.5 px
     noise, and none: ``exact_0px``), and the filter off with ``--raw``; print the table and return
     the runs by sequence."""
-    configs = {"": TrackConfig()}
+    base = TrackConfig().preset(args.preset)
+    configs = {"": base}
     if args.raw:
-        configs["_unfiltered"] = TrackConfig().merged({"filter": {"enabled": False}})
+        configs["_unfiltered"] = base.merged({"filter": {"enabled": False}})
     frames = 12 if args.quick else args.frames
     out, rows = {}, []
     for name in names:
@@ -195,7 +197,7 @@ def devset(names: list[str], args) -> dict:
         entry = {f"{features}{label}": track_devset(seq, config, features == "exact", frames)
                  for label, config in configs.items() for features in ("image", "exact")}
         entry["exact_0px"] = track_devset(seq, configs[""], True, frames, noise_px=0.0)
-        out[name] = {"config": config_to_dict(TrackConfig()), **entry}
+        out[name] = {"config": config_to_dict(base), **entry}
         img, ex = entry["image"], entry["exact"]
         rows.append([name, img["frames"], img["filtered_mean_deg"], img["filtered_max_deg"], img["raw_mean_deg"],
                      ex["raw_mean_deg"], ex["raw_max_deg"], ex["filtered_mean_deg"], ex["filtered_max_deg"],
@@ -229,6 +231,8 @@ def main(argv=None) -> int:
                         help="g-h-k discount factor per frame at 25 frames/s (TrackConfig.theta_rate_hz): 0.85 is "
                              "0.666 per frame on the 10 frames/s DigitEyes sequences")
     parser.add_argument("--size", default="320x240", help="image size WxH")
+    parser.add_argument("--preset", default="thesis", choices=tuple(PRESETS),
+                        help="TrackConfig preset applied to every run (default: thesis, the defaults)")
     parser.add_argument("--frames", type=int, help="frames per sequence (default: each experiment's own)")
     parser.add_argument("--sweep", action="store_true", help="the two-finger motion (or --only) at 6 speeds")
     parser.add_argument("--radius-scale", type=float, default=1.0,
@@ -256,7 +260,7 @@ def main(argv=None) -> int:
         render_s = time.perf_counter() - t0
         config = track_config(solver, steps, args.theta, reextract if args.reextract is None else args.reextract,
                               args.robust)
-        config = dataclasses.replace(config, image=image_config(method, exp, args))
+        config = dataclasses.replace(config, image=image_config(method, exp, args)).preset(args.preset)
         entry = {"method": method, "solver": solver, "steps": steps, "theta": args.theta, "size": args.size,
                  "robust_passes": config.robust.passes, "reextract": config.reextract, "render_s": render_s,
                  "radius_scale": args.radius_scale, "width_gain": args.width_gain,
@@ -288,6 +292,7 @@ def main(argv=None) -> int:
         out["devset"] = devset(names if args.only in (None, "devset") else [args.only], args)
     if not args.quick:
         stem = "tracking" + (f"_{args.only}" if args.only else "")
+        stem += f"_{args.preset}" if args.preset != "thesis" else ""
         if args.radius_scale != 1.0 or args.width_gain:
             stem += f"_r{args.radius_scale:g}_g{args.width_gain:g}"
         path = RESULTS / f"{stem}.json"
