@@ -4,7 +4,10 @@ Each sequence is tracked from its true first pose at 30 frames/s with the image 
 once with exact features (``ExactFrontEnd``, 0.5 px noise) as the reference, under each named
 setting (a change to ``TrackConfig``). Per run: mean and max absolute error (deg) over the moving
 joints (those whose truth moves), of the reported estimate (``q_filtered``) and of the raw solve
-(``q_solved``) and their mean tip error (px), frames flagged lost, and frames/s of the tracker step.
+(``q_solved``) and their mean tip error (px), frames flagged lost, frames/s of the tracker step,
+the longest stretch of frames in which one moving joint stays more than 15 deg off, and the loss
+flag's quality (the share of frames with a mean tip error over 8 px that are flagged lost or
+below 0.5 confidence, and of those under 3 px).
 Prints a table and writes
 ``benchmarks/results/devset.json``.
 
@@ -119,10 +122,21 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         e = np.degrees(np.abs(np.asarray(q) - qt))[:, moving]
         out[f"{label}_mean_deg"], out[f"{label}_max_deg"] = float(e.mean()), float(e.max())
         out[f"{label}_tip_mean_px"] = accuracy_summary(m, cams, np.asarray(q), qt)["tip_error_px"]["mean"]
+    err = np.degrees(np.abs(np.asarray(filt) - qt))[:, moving] > 15.0
+    out["longest_run_over_15deg"] = int(max((_longest_run(col) for col in err.T), default=0))
     out["per_frame_tip_px"] = frame_tip_error_px(m, cams, np.asarray(filt), qt).tolist()
     out["per_frame_confidence"], out["per_frame_lost"] = [float(c) for c in conf], [bool(x) for x in lost_flags]
     out["loss_flag"] = loss_flag_quality(out["per_frame_tip_px"], conf, lost_flags)
     return out
+
+
+def _longest_run(flags) -> int:
+    """The longest stretch of consecutive true values."""
+    best = run = 0
+    for f in flags:
+        run = run + 1 if f else 0
+        best = max(best, run)
+    return best
 
 
 def _share(x) -> str:
@@ -150,11 +164,12 @@ def main(argv=None) -> None:
                 records.append(rec)
                 rows.append([name, setting, rec["features"], f"{r['filtered_mean_deg']:.2f}",
                              f"{r['filtered_max_deg']:.1f}", f"{r['raw_mean_deg']:.2f}", f"{r['raw_max_deg']:.1f}",
-                             str(r["lost"]), f"{r['fps']:.1f}", _share(r["loss_flag"]["flagged_bad"]),
+                             str(r["lost"]), f"{r['fps']:.1f}", str(r["longest_run_over_15deg"]),
+                             _share(r["loss_flag"]["flagged_bad"]),
                              _share(r["loss_flag"]["flagged_good"])])
                 print(" | ".join(rows[-1]), flush=True)
     print(format_table(rows, ["sequence", "setting", "features", "mean", "max", "raw mean", "raw max", "lost", "fps",
-                              "flagged >8px", "flagged <3px"]))
+                              "frames >15° in a row", "flagged >8px", "flagged <3px"]))
     if not args.no_json:
         write_json({"environment": environment(), "runs": records}, RESULTS / args.json)
 
