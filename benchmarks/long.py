@@ -66,6 +66,9 @@ VARIANTS = {
     "truth-refresh+no-filter": Variant({"filter": {"enabled": False}}, refresh_at_truth=True),
     "no-recentre": Variant({"image": {"template_recentre": False}}),
     "no-reextract": Variant({"reextract": 0}),
+    "thesis": Variant({"image": {"refresh": {"min_move": 0.0}}, "filter": {"unseen_px_per_deg": 0.0}}),  # before 2026-12-02
+    "refresh-every-frame": Variant({"image": {"refresh": {"min_move": 0.0}}}),
+    "no-unseen-damping": Variant({"filter": {"unseen_px_per_deg": 0.0}}),
 }
 
 
