@@ -94,8 +94,10 @@ def test_marginal_information_by_hand():
     # an entry without features (a zero row and column) has none, up to eps; the other keeps its own
     hidden = jnp.array([[4.0, 0.0], [0.0, 0.0]])
     np.testing.assert_allclose(marginal_information(hidden, 1e-9), [4.0, 1e-9], rtol=1e-6)
-    # the share seen: m / (m + scale), half at m = scale
-    np.testing.assert_allclose(seen_share(jnp.diag(jnp.array([9.0, 1.0, 0.0])), 1.0), [0.9, 0.5, 0.0], atol=1e-6)
+    # the share seen: against a reference with nothing hidden; an entry the reference does not see counts as seen
+    ref = jnp.diag(jnp.array([4.0, 2.0, 1.0, 0.0]))
+    np.testing.assert_allclose(seen_share(jnp.diag(jnp.array([4.0, 1.0, 0.0, 0.0])), ref), [1.0, 0.5, 0.0, 1.0],
+                               atol=1e-6)
 
 
 def test_damp_unseen_by_hand():

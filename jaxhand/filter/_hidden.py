@@ -13,8 +13,10 @@ every other entry free) is
 
     m_j = 1 / [(Lambda + eps I)^-1]_jj,
 
-its share of being seen ``s_j = m_j / (m_j + c^2)`` for the scale ``c`` (px per unit of q at which
-an entry counts half seen), and after the update each entry keeps
+its share of being seen ``s_j = min(1, m_j / m0_j)`` against ``m0_j``, the same for every feature
+slot of the model valid with weight 1 (what the frame would say if nothing were hidden; unitless,
+so a joint the view sees poorly by nature, foreshortened or abducting, still counts as seen), and
+after the update each entry keeps
 
     v_j <- k_j v_j,   a_j <- k_j a_j,   k_j = s_j + (1 - s_j) exp(-T / tau)
 
@@ -43,11 +45,17 @@ def marginal_information(information: Float[ArrayLike, "n n"], eps) -> Float[Arr
     return 1.0 / variance
 
 
-def seen_share(information: Float[ArrayLike, "n n"], scale) -> Float[Array, " n"]:
-    """``m_j / (m_j + scale)`` in [0, 1] with ``m`` the :func:`marginal_information` (``scale`` > 0:
-    the information at which an entry counts half seen, e.g. ``c^2`` px^2/rad^2)."""
-    m = marginal_information(information, 1e-6 * jnp.asarray(scale))
-    return m / (m + scale)
+def seen_share(information: Float[ArrayLike, "n n"], reference: Float[ArrayLike, "n n"]) -> Float[Array, " n"]:
+    """``min(1, m_j / m0_j)`` in [0, 1]: the :func:`marginal_information` of ``information`` over
+    that of ``reference`` (the information with nothing hidden); 1 for an entry the reference
+    does not see either (nothing is hidden from it)."""
+    ref = jnp.asarray(reference)
+    n = ref.shape[-1]
+    eps = 1e-9 * (jnp.trace(ref) / n) + jnp.finfo(ref.dtype).tiny   # the scale of the reference's information
+    m, m0 = marginal_information(information, eps), marginal_information(ref, eps)
+    # Guard: an entry the reference does not see has m0 ~ eps; the denominator stays finite
+    seen = jnp.where(m0 > 1e3 * eps, m / jnp.where(m0 > 1e3 * eps, m0, 1.0), 1.0)
+    return jnp.clip(seen, 0.0, 1.0)
 
 
 def damp_unseen(state: GHKState, seen: Float[ArrayLike, " n"], keep_unseen) -> GHKState:

@@ -313,13 +313,15 @@ class RefreshConfig:
             least this many radii ``r`` since the last time: each refresh at a solved pose may
             store a little of the solve's error, so refreshing per frame drifts more the slower
             the hand moves; per unit of motion, the same path gets the same refreshes at any
-            speed. 0: every frame (the thesis).
+            speed (0.2 stops the drift of ``benchmarks/long.py`` only with
+            ``FilterConfig.damp_unseen``, and costs other runs; benchmarks/README.md). 0: every
+            frame (the thesis).
         min_clear: ... and only when at least this share of its profiles (those its window
             covers across the middle) show both boundaries against the background, where the
             re-centring can check the template's axis. 0: any link seen well enough (the thesis).
     """
 
-    min_move: float = 0.2
+    min_move: float = 0.0
     min_clear: float = 0.0
 
     def __post_init__(self):

@@ -26,9 +26,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from ..features import Features, feature_value_checks
+from ..features import Features, feature_value_checks, line_through
 from ..filter import GHKState, damp_unseen, ghk_predict, ghk_update, seen_share
-from ..kinematics import clip_q
+from ..kinematics import clip_q, pose
 from ..model import Model
 from ..priors import TemporalPrior, dip_pip_coupling, information_weight, soft_limits, stack_priors, temporal_weight
 from ..residuals import ResidualArgs, feature_distances, residuals_and_jacobian
@@ -91,7 +91,6 @@ class _StepNumbers(eqx.Module):
     rms_scale_px: Float[Array, ""]
     min_valid_share: Float[Array, ""]
     max_rms_px: Float[Array, ""]
-    unseen_scale: Float[Array, ""]   # c^2 of FilterConfig.unseen_px_per_deg, px^2/rad^2
     keep_unseen: Float[Array, ""]    # exp(-dt_s / FilterConfig.unseen_decay_s)
     damp_unseen: bool = eqx.field(static=True, default=False)
 
@@ -196,11 +195,28 @@ class _Solved(eqx.Module):
     seen: Float[Array, " nq"] | None = None
 
 
-def seen_at(model: Model, rig: tuple, feats: tuple, q, fractions, scale) -> Float[Array, " nq"]:
-    """Each q entry's share of being seen by the features (with the front end's weights) at ``q``
-    (:func:`jaxhand.filter.seen_share` of ``J^T J``)."""
-    _, J = residuals_and_jacobian(q, ResidualArgs(model=model, cameras=rig, features=feats, fractions=fractions))
-    return seen_share(J.T @ J, scale)
+def seen_at(model: Model, rig: tuple, feats: tuple, q, fractions) -> Float[Array, " nq"]:
+    """Each q entry's share of being seen by the frame's features at ``q``
+    (:func:`jaxhand.filter.seen_share`): the image information of the features' valid slots,
+    against every slot valid, both on the model's own projection at
+    ``q`` (so the share depends on what is seen, not on where the features lie)."""
+    p = pose(model, q)
+    own, every = [], []
+    for cam, f in zip(rig, feats):
+        lines, tips = line_through(cam.project(p.link_start)[0], cam.project(p.link_end)[0]), cam.project(p.tips)[0]
+        # valid slots at weight 1: the front end's weights (visibility, strength) scale every
+        # frame's information alike and would count a well-seen joint as partly hidden
+        own.append(Features(lines=lines, line_valid=f.line_valid, line_weight=jnp.ones_like(f.line_weight), tips=tips,
+                            tip_valid=f.tip_valid, tip_weight=jnp.ones_like(f.tip_weight)))
+        every.append(Features(lines=lines, line_valid=jnp.ones_like(f.line_valid), line_weight=jnp.ones_like(
+            f.line_weight), tips=tips, tip_valid=jnp.ones_like(f.tip_valid), tip_weight=jnp.ones_like(f.tip_weight)))
+
+    def information(features):
+        args = ResidualArgs(model=model, cameras=rig, features=tuple(features), fractions=fractions)
+        _, J = residuals_and_jacobian(q, args)
+        return J.T @ J
+
+    return seen_share(information(own), information(every))
 
 
 def solve_frame(model: Model, rig: tuple, feats: tuple, q_pred, q_start, build, fit_config, numbers: _StepNumbers,
@@ -231,7 +247,7 @@ def solve_frame(model: Model, rig: tuple, feats: tuple, q_pred, q_start, build, 
     rms = jnp.where(ok, jnp.sqrt(2.0 * jnp.where(ok, cost, 0.0) / n_res), jnp.inf)
     total = sum(f.line_valid.shape[-1] + f.tip_valid.shape[-1] for f in feats)
     share = (n_tips + n_lines).astype(dtype) / max(total, 1)
-    seen = seen_at(model, rig, feats, q_meas, fractions, numbers.unseen_scale) if numbers.damp_unseen else None
+    seen = seen_at(model, rig, feats, q_meas, fractions) if numbers.damp_unseen else None
     return _Solved(q=q_meas, ok=ok, cost=cost, iterations=result.iterations, status=result.status._value,
                    rms_px=rms, valid_share=share, seen=seen)
 
@@ -314,12 +330,11 @@ def step_constants(model: Model, rig: tuple, config: TrackConfig, theta: float, 
     options checked once here: what :class:`FrameProgram` (and the hypotheses' program) split."""
     build, fit_config = solver_program(config.solver, config.fit)
     fc = config.filter
-    unseen_scale = (fc.unseen_px_per_deg * 180.0 / np.pi) ** 2
     keep_unseen = float(np.exp(-dt_s / fc.unseen_decay_s)) if fc.unseen_decay_s > 0 else 0.0
     numbers = _StepNumbers(*(jnp.asarray(float(v)) for v in (
         theta, dt_s, config.robust.scale_px, config.robust.gate_scale_px, config.loss.rms_scale_px,
-        config.loss.min_valid_share, config.loss.max_rms_px, unseen_scale, keep_unseen)),
-        damp_unseen=fc.enabled and fc.unseen_px_per_deg > 0)
+        config.loss.min_valid_share, config.loss.max_rms_px, keep_unseen)),
+        damp_unseen=fc.enabled and fc.damp_unseen)
     priors = _Priors.of(model, config.prior)
     return (model, rig, build, fit_config, numbers, config.robust.passes, config.filter.enabled, config.loss.hold,
             priors, config.filter.report_solve)
