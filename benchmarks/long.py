@@ -66,6 +66,11 @@ VARIANTS = {
     "truth-refresh+no-filter": Variant({"filter": {"enabled": False}}, refresh_at_truth=True),
     "no-recentre": Variant({"image": {"template_recentre": False}}),
     "no-reextract": Variant({"reextract": 0}),
+    # issue 13's drift fixes (off by default: they cost tracking.py's experiments, benchmarks/README.md):
+    # templates re-taken per 0.2 radii of motion, unseen joints' velocity damped; and each alone
+    "drift-fix": Variant({"image": {"refresh": {"min_move": 0.2}}, "filter": {"damp_unseen": True}}),
+    "refresh-per-motion": Variant({"image": {"refresh": {"min_move": 0.2}}}),
+    "damp-unseen": Variant({"filter": {"damp_unseen": True}}),
 }
 
 

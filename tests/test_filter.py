@@ -5,12 +5,15 @@ from hypothesis import strategies as st
 
 from jaxhand.filter import (
     KalmanState,
+    damp_unseen,
     ghk_gains,
     ghk_init,
     ghk_predict,
     ghk_update,
     kalman_predict,
     kalman_update,
+    marginal_information,
+    seen_share,
     width_update,
 )
 
@@ -82,3 +85,47 @@ def test_width_update_appendix_e():
     p = width_update(jnp.array([10.0, 8.0]), jnp.array([[12.0, 14.0, 0.0], [1.0, 2.0, 3.0]]),
                      jnp.array([[True, True, False], [False, False, False]]), 0.5)
     np.testing.assert_allclose(p, [(1 - 0.5) * 10.0 + 0.5 * 13.0, 8.0])
+
+
+def test_marginal_information_by_hand():
+    # Lambda = [[2, 1], [1, 1]]: its inverse is [[1, -1], [-1, 2]], so the marginals are 1 and 1/2
+    lam = jnp.array([[2.0, 1.0], [1.0, 1.0]])
+    np.testing.assert_allclose(marginal_information(lam, 1e-12), [1.0, 0.5], rtol=1e-9)
+    # an entry without features (a zero row and column) has none, up to eps; the other keeps its own
+    hidden = jnp.array([[4.0, 0.0], [0.0, 0.0]])
+    np.testing.assert_allclose(marginal_information(hidden, 1e-9), [4.0, 1e-9], rtol=1e-6)
+    # the share seen: against a reference with nothing hidden; an entry the reference does not see counts as seen
+    ref = jnp.diag(jnp.array([4.0, 2.0, 1.0, 0.0]))
+    np.testing.assert_allclose(seen_share(jnp.diag(jnp.array([4.0, 1.0, 0.0, 0.0])), ref), [1.0, 0.5, 0.0, 1.0],
+                               atol=1e-6)
+
+
+def test_damp_unseen_by_hand():
+    s = ghk_init(jnp.array([1.0, 2.0, 3.0]), jnp.array([4.0, 4.0, 4.0]), jnp.array([8.0, 8.0, 8.0]))
+    d = damp_unseen(s, jnp.array([1.0, 0.0, 0.5]), 0.25)   # keeps 1, 0.25 and 0.5 + 0.5 * 0.25
+    np.testing.assert_allclose(d.x, [1.0, 2.0, 3.0])
+    np.testing.assert_allclose(d.v, [4.0, 1.0, 2.5])
+    np.testing.assert_allclose(d.a, [8.0, 2.0, 5.0])
+
+
+def test_a_hidden_joint_stays_put_when_damped():
+    """A joint followed while it accelerates, then hidden (the solve returns the prediction, so
+    no innovation): undamped, the filter integrates its last velocity and acceleration on and on;
+    damped with tau = 0.2 s it stops within about v tau of where it was last seen."""
+    dt, theta, tau = 0.04, 0.85, 0.2
+    t = np.arange(40) * dt
+    seen_q = 0.5 * t**2   # rad: accelerating at 1 rad/s^2, at 1.56 rad/s when hidden
+    ends = {}
+    for damped in (False, True):
+        s = ghk_init(jnp.array([0.0]))
+        for y in seen_q:
+            s = ghk_predict(ghk_update(s, jnp.array([y]), theta, dt), dt)
+        last = float(s.x[0])
+        for _ in range(200):   # 8 s hidden: the measurement is the prediction itself
+            u = ghk_update(s, s.x, theta, dt)
+            if damped:
+                u = damp_unseen(u, jnp.array([0.0]), np.exp(-dt / tau))
+            s = ghk_predict(u, dt)
+        ends[damped] = float(s.x[0]) - last
+    assert ends[True] < 1.6 * 2 * tau   # within twice v tau of the last seen pose
+    assert ends[False] > 10.0           # undamped it runs on for radians (past any joint limit)

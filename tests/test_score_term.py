@@ -21,9 +21,6 @@ from jaxhand.track import ImageFrontEnd, TrackConfig, Tracker
 DEVSET = Path(__file__).resolve().parent.parent / "data" / "mujoco"
 ON = SilhouetteTermConfig(weight=0.5)
 EDGES = SilhouetteTermConfig(weight=0.5, edge_weight=0.5)
-ROBUST = {"image": {"silhouette_term": {"weight": 0.5, "edge_weight": 0.5}}, "loss": {"hold": False},
-          "filter": {"report_solve": True}, "prior": {"dip_pip_weight": 4.0},
-          "hypotheses": {"flips": 4, "flip_deg": 40.0, "last_solve": True}}
 
 
 @pytest.fixture(scope="module")
@@ -136,11 +133,11 @@ def test_the_front_end_returns_one_term_per_camera_only_when_on(open_close):
 def test_the_terms_keep_the_closing_hand(open_close):
     """Frames 11-30 of open_close: the fingers curl towards the camera, where the default front
     end lets fingers settle at their hyper-extension limits (benchmarks/README.md); the
-    silhouette and edge terms with several starts stay far closer to the truth."""
+    robust preset (the silhouette term judging several starts) stays far closer to the truth."""
     m, cams = open_close.model, open_close.truth.cameras
     moving = np.ptp(np.asarray(open_close.truth.q), axis=0) > 1e-6
     errors = {}
-    for label, config in (("default", TrackConfig()), ("robust", TrackConfig().merged(ROBUST))):
+    for label, config in (("default", TrackConfig()), ("robust", TrackConfig().preset("robust"))):
         tracker = Tracker(m, cams, ImageFrontEnd(m, cams, config.image), config, dt_s=1 / 30)
         state, err = tracker.init(np.asarray(open_close.truth.q[10])), []
         for k in range(11, 31):

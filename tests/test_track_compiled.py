@@ -252,3 +252,38 @@ def test_bad_features_raise_from_step():
         TrackConfig(fit=FitConfig(jacobian="numeric"))
     with pytest.raises(jh.InputError, match="config.jacobian"):
         jh.fit(m, seq.cameras, good, seq.q[0], config=FitConfig(jacobian="numeric"))
+
+
+@pytest.mark.parametrize("damp", [True, False])
+def test_a_hidden_joint_is_not_carried_on(damp):
+    """The middle DIP flexes at a steady rate for 20 frames, then its phalanx and tip are hidden
+    (invalid) for 60 frames while the truth stands still: damped by its unseen share
+    (FilterConfig.damp_unseen), its prediction stops within about v tau of where it was last
+    seen; without, the g-h-k filter carries it on to its limit."""
+    seq = make_preset("two_finger_occlusion", frames=5, size=(160, 120))
+    m = seq.model
+    dip, link = m.q_lookup("middle_dip"), m.link_lookup("middle_dip")
+    tip = m.tip_links.index(link)
+    dt = 1 / 25
+    q = np.tile(seq.q[0], (80, 1))
+    q[:, dip] = np.radians(-10.0) - np.radians(1.5) * np.minimum(np.arange(80), 20)   # -40 deg from frame 20
+    exact = [features_from_pose(m, seq.cameras, qk)[0] for qk in q]
+
+    def features(images, q_start, state, frame):
+        f = exact[frame]
+        if frame >= 20:
+            f = eqx.tree_at(lambda g: (g.line_valid, g.tip_valid), f,
+                            (f.line_valid.at[link].set(False), f.tip_valid.at[tip].set(False)))
+        return (f,)
+
+    tracker = Tracker(m, seq.cameras, FunctionFrontEnd(features), TrackConfig(filter=FilterConfig(damp_unseen=damp)),
+                      dt_s=dt)
+    state = tracker.init(q[0])
+    for k in range(80):
+        state, rep = tracker.step(state, [None], k)
+    drift = np.degrees(float(state.ghk.x[dip]) - q[-1, dip])
+    if damp:
+        # 1.5 deg/frame kept at exp(-0.04 / 0.2) per frame sums to about 1.5 / (1 - 0.82) = 8 deg
+        assert abs(drift) < 12.0
+    else:
+        assert drift < -20.0      # carried on towards the limit

@@ -5,6 +5,9 @@ from ._ghk import ghk_gains as ghk_gains
 from ._ghk import ghk_init as ghk_init
 from ._ghk import ghk_predict as ghk_predict
 from ._ghk import ghk_update as ghk_update
+from ._hidden import damp_unseen as damp_unseen
+from ._hidden import marginal_information as marginal_information
+from ._hidden import seen_share as seen_share
 from ._kalman import KalmanState as KalmanState
 from ._kalman import kalman_predict as kalman_predict
 from ._kalman import kalman_update as kalman_update
@@ -20,4 +23,5 @@ from ._width import width_update as width_update
 
 __all__ = ["GHKState", "ghk_gains", "ghk_init", "ghk_predict", "ghk_update", "KalmanState", "kalman_predict",
            "kalman_update", "width_update", "PriorState", "prior_init", "prior_predict", "prior_update",
-           "prior_update_map", "prior_residuals", "prior_information", "solve_information"]
+           "prior_update_map", "prior_residuals", "prior_information", "solve_information", "marginal_information",
+           "seen_share", "damp_unseen"]

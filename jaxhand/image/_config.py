@@ -14,7 +14,7 @@ from .._errors import InputError
 from ..score import ScoreSection, SilhouetteTermConfig
 
 __all__ = ["SamplerConfig", "SearchConfig", "VisibilityConfig", "LineConfig", "TipConfig", "RecentreConfig",
-           "WidthConfig", "ImageConfig", "INTERPOLATIONS", "POLARITIES"]
+           "RefreshConfig", "WidthConfig", "ImageConfig", "INTERPOLATIONS", "POLARITIES"]
 
 INTERPOLATIONS = ("nearest", "bilinear", "bicubic")
 POLARITIES = ("bright", "dark")
@@ -303,6 +303,33 @@ class RecentreConfig:
 
 
 @dataclasses.dataclass(frozen=True)
+class RefreshConfig:
+    """When a tracker's refresh re-takes a link's template at the solved pose
+    (:func:`jaxhand.image.refresh_templates`): only where the frame can vouch for that pose, so a
+    slightly wrong solve is not stored and matched again (template drift).
+
+    Attributes:
+        min_move: re-take a link's template only once one of its projected ends has moved at
+            least this many radii ``r`` since the last time: each refresh at a solved pose may
+            store a little of the solve's error, so refreshing per frame drifts more the slower
+            the hand moves; per unit of motion, the same path gets the same refreshes at any
+            speed (0.2 stops the drift of ``benchmarks/long.py`` only with
+            ``FilterConfig.damp_unseen``, and costs other runs; benchmarks/README.md). 0: every
+            frame (the thesis).
+        min_clear: ... and only when at least this share of its profiles (those its window
+            covers across the middle) show both boundaries against the background, where the
+            re-centring can check the template's axis. 0: any link seen well enough (the thesis).
+    """
+
+    min_move: float = 0.0
+    min_clear: float = 0.0
+
+    def __post_init__(self):
+        _check(self.min_move >= 0, "RefreshConfig.min_move", f"must be >= 0, got {self.min_move!r}")
+        _check(0 <= self.min_clear <= 1, "RefreshConfig.min_clear", f"must lie in [0, 1], got {self.min_clear!r}")
+
+
+@dataclasses.dataclass(frozen=True)
 class WidthConfig:
     """Width measures and the radius estimate (thesis appendix E; :func:`jaxhand.image.measure_widths`).
 
@@ -350,6 +377,7 @@ class ImageConfig:
         lines: line fitting and link validity.
         tips: tip features.
         recentre: how template re-centring finds the axis a new template shows.
+        refresh: when a tracker's refresh may re-take a link's template at the solved pose.
         widths: width measures and the radius estimate.
         template_min_visible: a view updates a link's template only when at least this share of
             the link's outline is visible (and then only the samples that show it).
@@ -386,6 +414,7 @@ class ImageConfig:
     lines: LineConfig = LineConfig()
     tips: TipConfig = TipConfig()
     recentre: RecentreConfig = RecentreConfig()
+    refresh: RefreshConfig = RefreshConfig()
     widths: WidthConfig = WidthConfig()
     template_min_visible: float = 0.25
     template_recentre: bool = True

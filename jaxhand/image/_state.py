@@ -34,12 +34,16 @@ class ImageState:
         radius_mm: (links,) the phalanx radii estimated from the images
             (:func:`jaxhand.image.update_widths`), which the front end uses in place of the
             model's; None: the model's radii.
+        refreshed_px: per camera, (links, 2, 2) the projected link ends (px) where
+            :func:`jaxhand.image.refresh_templates` last re-took each template (NaN: never);
+            None: no refresh yet.
     """
 
     templates: tuple[np.ndarray, ...]
     template_mask: tuple[np.ndarray, ...]
     layout: tuple[int, int, float]
     radius_mm: np.ndarray | None = None
+    refreshed_px: tuple[np.ndarray, ...] | None = None
 
     @property
     def template_valid(self) -> tuple[np.ndarray, ...]:

@@ -12,7 +12,7 @@ from ._polygons import convex_edges, inside_polygons
 from ._reacquire import reacquire, reacquire_full, search_turns, turns_to_try
 from ._regression import imwplls, mwplls, plls
 from ._sampling import INTERPOLATION_FLAGS, as_grey, sample_profiles
-from ._templates import seen_axis_offsets, shift_profiles, take_templates
+from ._templates import clear_share, link_ends, refresh_gate, seen_axis_offsets, shift_profiles, take_templates
 from ._trackers import LinkSamplers, TipSamplers, place_link_samplers, place_tip_samplers, refine_tip
 from ._view import LineFit, TipFit, View, edges_to_px, find_tips, fit_links, search_view
 from ._visibility import OccluderPills, Visibility, compute_visibility, pill_outlines, same_chain, window_masks
@@ -39,6 +39,7 @@ __all__ = [
     "inside_polygons", "ransac_pca", "axial_line", "line_params", "line_point_direction", "offset_towards",
     "plls", "mwplls", "imwplls", "LineFit", "TipFit", "View", "edges_to_px", "fit_links", "find_tips",
     "search_view", "reacquire", "reacquire_full", "search_turns", "turns_to_try", "seen_axis_offsets", "shift_profiles",
-    "take_templates", "width_ratios", "correlate_shifts", "derivative_kernel", "gaussian_derivative",
+    "take_templates", "clear_share", "link_ends", "refresh_gate",
+    "width_ratios", "correlate_shifts", "derivative_kernel", "gaussian_derivative",
     "parabola_vertex", "simple_derivative", "width_template", "wssd_descend", "wssd_surface",
 ]

@@ -26,9 +26,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from ..features import Features, feature_value_checks
-from ..filter import GHKState, ghk_predict, ghk_update
-from ..kinematics import clip_q
+from ..features import Features, feature_value_checks, line_through
+from ..filter import GHKState, damp_unseen, ghk_predict, ghk_update, seen_share
+from ..kinematics import clip_q, pose
 from ..model import Model
 from ..priors import TemporalPrior, dip_pip_coupling, information_weight, soft_limits, stack_priors, temporal_weight
 from ..residuals import ResidualArgs, feature_distances, residuals_and_jacobian
@@ -36,8 +36,8 @@ from ..solve.internal import fit_traced, solver_program
 from ._config import TrackConfig
 from ._score import frame_score
 
-__all__ = ["FrameProgram", "frame_step", "solve_frame", "finish_frame", "step_constants", "robust_solve", "gate",
-           "reweight", "filter_update", "SCALARS", "FEATURE_FIELDS"]
+__all__ = ["FrameProgram", "frame_step", "solve_frame", "seen_at", "finish_frame", "step_constants", "robust_solve",
+           "gate", "reweight", "filter_update", "SCALARS", "FEATURE_FIELDS"]
 
 #: The scalars of a :class:`_StepOut`, in the order :func:`_frame_jit` packs them.
 SCALARS = ("solved_ok", "cost", "iterations", "status", "rms_px", "valid_share", "confidence", "lost",
@@ -46,11 +46,13 @@ SCALARS = ("solved_ok", "cost", "iterations", "status", "rms_px", "valid_share",
 FEATURE_FIELDS = ("lines", "line_valid", "line_weight", "tips", "tip_valid", "tip_weight")
 
 
-def filter_update(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: bool, report_solve: bool = False
-                  ) -> tuple[Float[Array, " nq"], GHKState]:
+def filter_update(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: bool, report_solve: bool = False,
+                  seen=None, keep_unseen=0.0) -> tuple[Float[Array, " nq"], GHKState]:
     """g-h-k update with the measured q, then the prediction for the next frame (both clipped).
     With ``report_solve`` the estimate is the measurement itself; the filter's velocity and
-    acceleration still carry the prediction from it."""
+    acceleration still carry the prediction from it. With ``seen`` (per entry, in [0, 1]) the
+    velocity and acceleration of the joint angles the frame does not see decay before the
+    prediction, each keeping ``seen + (1 - seen) keep_unseen`` (:func:`jaxhand.filter.damp_unseen`)."""
     if model.base_kind == "free":  # keep the measured quaternion in the prediction's hemisphere
         flip = jnp.sign(jnp.dot(q_meas[:4], ghk.x[:4]))
         q_meas = q_meas.at[:4].multiply(jnp.where(flip == 0, 1.0, flip))
@@ -58,6 +60,8 @@ def filter_update(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: 
         updated = ghk_update(ghk, q_meas, theta, dt_s)
         if report_solve:
             updated = GHKState(x=q_meas, v=updated.v, a=updated.a)
+        if seen is not None:   # angles only: a base translation or quaternion is not a joint a finger hides
+            updated = damp_unseen(updated, jnp.where(model.is_angle, seen, 1.0), keep_unseen)
     else:
         updated = GHKState(x=q_meas, v=jnp.zeros_like(q_meas), a=jnp.zeros_like(q_meas))
     filtered = clip_q(model, updated.x)
@@ -88,6 +92,8 @@ class _StepNumbers(eqx.Module):
     min_valid_share: Float[Array, ""]
     max_rms_px: Float[Array, ""]
     min_term_merit: Float[Array, ""]
+    keep_unseen: Float[Array, ""]    # exp(-dt_s / FilterConfig.unseen_decay_s)
+    damp_unseen: bool = eqx.field(static=True, default=False)
 
 
 class _Priors(eqx.Module):
@@ -188,6 +194,31 @@ class _Solved(eqx.Module):
     rms_px: Float[Array, ""]
     valid_share: Float[Array, ""]
     term_merit: Float[Array, ""]
+    seen: Float[Array, " nq"] | None = None
+
+
+def seen_at(model: Model, rig: tuple, feats: tuple, q, fractions) -> Float[Array, " nq"]:
+    """Each q entry's share of being seen by the frame's features at ``q``
+    (:func:`jaxhand.filter.seen_share`): the image information of the features' valid slots,
+    against every slot valid, both on the model's own projection at
+    ``q`` (so the share depends on what is seen, not on where the features lie)."""
+    p = pose(model, q)
+    own, every = [], []
+    for cam, f in zip(rig, feats):
+        lines, tips = line_through(cam.project(p.link_start)[0], cam.project(p.link_end)[0]), cam.project(p.tips)[0]
+        # valid slots at weight 1: the front end's weights (visibility, strength) scale every
+        # frame's information alike and would count a well-seen joint as partly hidden
+        own.append(Features(lines=lines, line_valid=f.line_valid, line_weight=jnp.ones_like(f.line_weight), tips=tips,
+                            tip_valid=f.tip_valid, tip_weight=jnp.ones_like(f.tip_weight)))
+        every.append(Features(lines=lines, line_valid=jnp.ones_like(f.line_valid), line_weight=jnp.ones_like(
+            f.line_weight), tips=tips, tip_valid=jnp.ones_like(f.tip_valid), tip_weight=jnp.ones_like(f.tip_weight)))
+
+    def information(features):
+        args = ResidualArgs(model=model, cameras=rig, features=tuple(features), fractions=fractions)
+        _, J = residuals_and_jacobian(q, args)
+        return J.T @ J
+
+    return seen_share(information(own), information(every))
 
 
 def solve_frame(model: Model, rig: tuple, feats: tuple, q_pred, q_start, build, fit_config, numbers: _StepNumbers,
@@ -221,8 +252,9 @@ def solve_frame(model: Model, rig: tuple, feats: tuple, q_pred, q_start, build, 
     merit = jnp.ones((), dtype)
     for term in terms:   # the measured terms' agreement with the solve (1 for the others)
         merit = merit * term.merit(model, rig, q_meas)
+    seen = seen_at(model, rig, feats, q_meas, fractions) if numbers.damp_unseen else None
     return _Solved(q=q_meas, ok=ok, cost=cost, iterations=result.iterations, status=result.status._value,
-                   rms_px=rms, valid_share=share, term_merit=merit)
+                   rms_px=rms, valid_share=share, term_merit=merit, seen=seen)
 
 
 def features_ok(feats: tuple) -> Bool[Array, ""]:
@@ -241,7 +273,7 @@ def finish_frame(model: Model, ghk: GHKState, q_last, solved: _Solved, checks_ok
     conf = conf * solved.term_merit
     lost = lost | (solved.term_merit < numbers.min_term_merit)
     filtered, ghk_next = filter_update(model, ghk, solved.q, numbers.theta, numbers.dt_s, use_filter,
-                                       report_solve)
+                                       report_solve, solved.seen, numbers.keep_unseen)
     if hold:
         # A lost frame's solve fits stray features: hold the last good estimate still (zero
         # velocity and acceleration) instead of letting the filter extrapolate it.
@@ -305,9 +337,12 @@ def step_constants(model: Model, rig: tuple, config: TrackConfig, theta: float, 
     build, fit_config, numbers, passes, use_filter, hold, priors, report_solve), the solver and its
     options checked once here: what :class:`FrameProgram` (and the hypotheses' program) split."""
     build, fit_config = solver_program(config.solver, config.fit)
+    fc = config.filter
+    keep_unseen = float(np.exp(-dt_s / fc.unseen_decay_s)) if fc.unseen_decay_s > 0 else 0.0
     numbers = _StepNumbers(*(jnp.asarray(float(v)) for v in (
         theta, dt_s, config.robust.scale_px, config.robust.gate_scale_px, config.loss.rms_scale_px,
-        config.loss.min_valid_share, config.loss.max_rms_px, config.loss.min_term_merit)))
+        config.loss.min_valid_share, config.loss.max_rms_px, config.loss.min_term_merit, keep_unseen)),
+        damp_unseen=fc.enabled and fc.damp_unseen)
     priors = _Priors.of(model, config.prior)
     return (model, rig, build, fit_config, numbers, config.robust.passes, config.filter.enabled, config.loss.hold,
             priors, config.filter.report_solve)

@@ -50,12 +50,22 @@ class FilterConfig:
             prior being the compromise between solve and prediction) as the estimate and predict
             from it with the filter's velocity and acceleration; False: report the g-h-k update
             (the thesis).
+        damp_unseen: static. Damp the velocity and acceleration of each joint angle by the share
+            of its image information the frame's features give (:func:`jaxhand.filter.seen_share`):
+            a hidden joint gets no innovation, so its last velocity would carry it on to a limit.
+            Off by default: a front end that misses visible links now and then lags with it
+            (benchmarks/README.md, 2026-12-02).
+        unseen_decay_s: traced, s. An unseen joint's velocity and acceleration decay with this
+            time constant (:func:`jaxhand.filter.damp_unseen`): long enough to carry a finger
+            across a brief occlusion, short enough that a long one holds it still.
     """
 
     enabled: bool = True
     theta: float = 0.85
     theta_rate_hz: float | None = 25.0
     report_solve: bool = False
+    damp_unseen: bool = False
+    unseen_decay_s: float = 0.2
 
     def __post_init__(self):
         if self.theta_rate_hz is None:
@@ -66,6 +76,13 @@ class FilterConfig:
         _need(0.0 <= self.theta <= 1.0, "filter.theta", f"theta must lie in [0, 1], got {self.theta}")
         _need(self.theta_rate_hz >= 0, "filter.theta_rate_hz",
               f"theta_rate_hz must be > 0 Hz (or 0: per frame), got {self.theta_rate_hz}")
+        _need(isinstance(self.damp_unseen, bool), "filter.damp_unseen",
+              f"expected true or false, got {self.damp_unseen!r}")
+        value = self.unseen_decay_s
+        _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+              and value >= 0, "filter.unseen_decay_s",
+              f"expected a finite number >= 0 (0: an unseen joint stops at once), got {value!r}")
+        object.__setattr__(self, "unseen_decay_s", float(value))
 
     def theta_per_frame(self, dt_s: float) -> float:
         """The discount for one frame of ``dt_s`` seconds."""

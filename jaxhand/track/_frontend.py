@@ -17,7 +17,7 @@ import numpy as np
 
 from ..camera import as_rig
 from ..features import Features, features_from_pose
-from ..image import ImageConfig, ImageState, WindowOutlines, capture_templates, extract_features, update_widths
+from ..image import ImageConfig, ImageState, WindowOutlines, extract_features, refresh_templates, update_widths
 from ..image.searches import TEMPLATE_SEARCHES
 from ..model import Model
 from ..score import (
@@ -96,7 +96,8 @@ class ImageFrontEnd(AbstractFrontEnd):
     :meth:`extract` searches around ``q_start``; on the first frame with
     ``config.width_gain`` > 0 the radii measured at the hand-set pose replace the model's at
     once. :meth:`refresh` re-estimates the widths and re-takes the templates at the solved pose
-    (thesis §4.3.1: templates come from unoccluded views); a search that keeps no templates with
+    (thesis §4.3.1: templates come from unoccluded views) where the frame vouches for that pose
+    (:func:`jaxhand.image.refresh_templates`, ``config.refresh``); a search that keeps no templates with
     no width estimate returns the state untouched. :meth:`score` scores poses with
     ``config.score`` (None when its foreground is "none"). With ``config.silhouette_term`` on,
     every extraction also returns the frame's silhouette terms, one per camera.
@@ -140,7 +141,7 @@ class ImageFrontEnd(AbstractFrontEnd):
             state = update_widths(images, self.model, self.cameras, q, self.config, state)
         if self.config.method not in TEMPLATE_SEARCHES:
             return state
-        return capture_templates(images, self.model, self.cameras, q, self.config, state)
+        return refresh_templates(images, self.model, self.cameras, q, self.config, state)
 
     def score(self, images, qs, state) -> np.ndarray | None:
         """The mean over cameras of :func:`jaxhand.score.score_silhouette` of each pose (the
