@@ -84,11 +84,14 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--smooth", type=float, default=30.0, help="SequenceConfig.smooth_px_per_rad")
     ap.add_argument("--accel", type=float, default=0.0, help="SequenceConfig.accel_px_per_rad")
+    ap.add_argument("--dip-pip", type=float, default=0.0, help="SequenceConfig.dip_pip_px_per_rad")
+    ap.add_argument("--dip-pip-ratio", type=float, default=2.0 / 3.0, help="SequenceConfig.dip_pip_ratio")
     ap.add_argument("--steps", type=int, default=300, help="SequenceConfig.max_steps")
     ap.add_argument("--init", default="auto", help="fit_landmark_sequence's init")
     ap.add_argument("--json", default="landmarks_devset.json", help="file in benchmarks/results/ ('' : none)")
     args = ap.parse_args()
-    config = SequenceConfig(smooth_px_per_rad=args.smooth, accel_px_per_rad=args.accel, max_steps=args.steps)
+    config = SequenceConfig(smooth_px_per_rad=args.smooth, accel_px_per_rad=args.accel, max_steps=args.steps,
+                            dip_pip_px_per_rad=args.dip_pip, dip_pip_ratio=args.dip_pip_ratio)
     load0 = load_average()
     runs = []
     for name in (args.only.split(",") if args.only else SEQUENCES):
@@ -108,7 +111,8 @@ def main() -> None:
     if args.json:
         write_json({"noise_px": args.noise_px, "seed": args.seed, "tips": "cap_centre", "init": args.init,
                     "config": {"smooth_px_per_rad": args.smooth, "accel_px_per_rad": args.accel,
-                               "max_steps": args.steps},
+                               "max_steps": args.steps, "dip_pip_px_per_rad": args.dip_pip,
+                               "dip_pip_ratio": args.dip_pip_ratio},
                     "frames_per_s_note": "first call per run, compilation included",
                     "runs": runs, "environment": environment(),
                     "load_average": {"start": load0, "end": load_average()}}, RESULTS / args.json)

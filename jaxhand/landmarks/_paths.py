@@ -14,9 +14,16 @@ sequence solve a start that chooses the branch from the whole sequence:
    finger takes its branch from whichever start found it, whatever the others did; a free palm
    moves every landmark, so all joints form one block;
 3. per block, the path through the frames' candidates that minimises the landmark cost of the
-   block's points plus the first-difference smoothness term of
+   block's points and its fingers' DIP-PIP term plus the first-difference smoothness term of
    :class:`~jaxhand.landmarks.SequenceConfig` (the sequence objective without its shape terms),
-   found by dynamic programming (Viterbi: O(frames x candidates^2) per block).
+   found by dynamic programming (Viterbi: O(frames x candidates^2) per block);
+4. ``jumps`` rounds: every frame of the chosen path also from its kinematic jumps
+   (:func:`jump_starts`: in each block, every subset of its hinges reflected across the folds
+   where their links lie across the viewing ray, :func:`~jaxhand.kinematics.fold_turns`) and
+   from the path's states at the frames before and after; the refined fits join the candidates
+   and step 3 runs again over all of them. A finger's mirror branch that no fixed start reached
+   is one jump away from the branch that was, and what one frame finds spreads to its
+   neighbours. The rounds stop early when the path no longer changes.
 """
 
 from __future__ import annotations
@@ -27,13 +34,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..camera import as_rig
+from ..kinematics import fold_hinges, fold_turns
 from ..model import Model
 from ._convention import LandmarkMap
 from ._fit import BatchConfig, _as_float_landmarks, fit_landmarks_batch
 from ._residuals import LandmarkArgs, Landmarks, _dependence, landmark_residuals
-from ._sequence import SequenceConfig, _unit_weights
+from ._sequence import SequenceConfig, _unit_weights, sequence_coupling
 
-__all__ = ["joint_starts", "independent_blocks", "smoothest_paths", "START_FRACTIONS"]
+__all__ = ["joint_starts", "jump_starts", "independent_blocks", "smoothest_paths", "START_FRACTIONS"]
 
 #: Fractions of each joint's range at which :func:`joint_starts` places the joints.
 START_FRACTIONS = (0.1, 0.3, 0.5, 0.7, 0.9)
@@ -113,9 +121,60 @@ def _viterbi(unary: np.ndarray, Q: np.ndarray, w: np.ndarray) -> np.ndarray:
     return path
 
 
+@eqx.filter_jit
+def _jump(model, camera, Q, hinge, mask):
+    """Q (B, n_q) with hinge ``hinge`` (traced) of :func:`~jaxhand.kinematics.fold_hinges`
+    reflected across its fold where ``mask`` (B,) is set and the fold exists, clipped into the
+    limits."""
+    joint = jnp.asarray(fold_hinges(model)[0])[hinge]
+    turn, ok = jax.vmap(lambda q: fold_turns(model, camera, q))(Q)
+    value = jnp.clip(Q[:, joint] + 2 * turn[:, hinge], model.q_lower[joint], model.q_upper[joint])
+    return Q.at[:, joint].set(jnp.where(mask & ok[:, hinge], value, Q[:, joint]))
+
+
+def jump_starts(model: Model, camera, q, blocks) -> np.ndarray:
+    """(T, P, n_q) kinematic jumps of the states q (T, n_q): start p reflects, in every block of
+    ``blocks`` at once, one non-empty subset of the block's hinges across their folds (the
+    blocks' subsets cycle through all 2^k - 1 of a block with k hinges; P is the largest count),
+    one hinge after the other along q, each fold taken at the state the previous jumps left."""
+    hinges = fold_hinges(model)[0]
+    T = q.shape[0]
+    own = [np.nonzero(np.isin(hinges, b))[0] for b in blocks]
+    P = max([2 ** len(h) - 1 for h in own] + [0])
+    if P == 0:
+        return np.zeros((T, 0, model.n_q))
+    mask = np.zeros((P, len(hinges)), bool)
+    for h in own:
+        for p in range(P):
+            bits = p % (2 ** len(h) - 1) + 1
+            mask[p, h] = [(bits >> i) & 1 for i in range(len(h))]
+    Q = jnp.asarray(np.repeat(np.asarray(q, float)[:, None], P, axis=1).reshape(T * P, model.n_q))
+    full = np.tile(mask, (T, 1))
+    for k in range(len(hinges)):
+        if full[:, k].any():
+            Q = _jump(model, camera, Q, jnp.asarray(k), jnp.asarray(full[:, k]))
+    return np.asarray(Q).reshape(T, P, model.n_q)
+
+
+def _choose(model, lmap, config, Q, cost, coupled) -> np.ndarray:
+    """Per independent block, the Viterbi path through the candidates Q (T, K, n_q) with the
+    point costs ``cost`` (T, K, 21) and squared DIP-PIP residuals ``coupled`` (T, K, fingers)."""
+    T = Q.shape[0]
+    dep = _dependence(model, lmap)
+    w = np.asarray(_unit_weights(model, config, jnp.asarray(0.0).dtype))
+    pip = np.asarray(sequence_coupling(model, config).pip_index, int)
+    q = Q[:, 0].copy()
+    for block in independent_blocks(model, lmap):
+        points = dep[:, block].any(axis=1)
+        unary = 0.5 * (cost[..., points].sum(-1) + coupled[..., np.isin(pip, block)].sum(-1))
+        path = _viterbi(unary, Q[..., block], w[block])
+        q[:, block] = Q[np.arange(T), path][:, block]
+    return q
+
+
 def smoothest_paths(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkMap, *, candidates=None,
                     config: SequenceConfig | None = None, batch_config: BatchConfig | None = None,
-                    fractions=START_FRACTIONS, draws: int = 16) -> np.ndarray:
+                    fractions=START_FRACTIONS, draws: int = 16, jumps: int = 2) -> np.ndarray:
     """(T, n_q) start of a sequence fit: per independent block of joints, the smoothest low-cost
     path through every frame's candidate fits (see the module docstring).
 
@@ -125,6 +184,7 @@ def smoothest_paths(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkM
             the starts of a moving base take their base entries from the first candidate.
         config: the smoothness weights (:class:`~jaxhand.landmarks.SequenceConfig`).
         fractions, draws: the starts of :func:`joint_starts` (seed 0).
+        jumps: rounds of kinematic jumps (step 4 of the module docstring); 0: none.
     """
     rig = as_rig(cameras)
     config = SequenceConfig() if config is None else config
@@ -135,16 +195,26 @@ def smoothest_paths(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkM
         cand = np.asarray(candidates, float).transpose(1, 0, 2)              # (T, C, n_q)
         starts[..., :model.n_base_q] = cand[:, :1, :model.n_base_q]          # the joint starts ride on the palm
         starts = np.concatenate([cand, starts], axis=1)
-    K = starts.shape[1]
-    lm = jax.tree_util.tree_map(lambda x: jnp.repeat(x, K, axis=0), _as_float_landmarks(landmarks))
-    res = fit_landmarks_batch(model, rig, lm, starts.reshape(T * K, model.n_q), config=batch_config, lmap=lmap)
-    Q = np.asarray(res.q).reshape(T, K, model.n_q)
-    cost = np.asarray(_point_costs(model, rig, lmap, lm, res.q)).reshape(T, K, 21)
-    dep = _dependence(model, lmap)
-    w = np.asarray(_unit_weights(model, config, jnp.asarray(0.0).dtype))
-    q = Q[:, 0].copy()
-    for block in independent_blocks(model, lmap):
-        points = dep[:, block].any(axis=1)
-        path = _viterbi(0.5 * cost[..., points].sum(-1), Q[..., block], w[block])
-        q[:, block] = Q[np.arange(T), path][:, block]
+    coupling = sequence_coupling(model, config)
+    lm = _as_float_landmarks(landmarks)
+    blocks = independent_blocks(model, lmap)
+    pool = []
+
+    def refine(S):               # (T, K, n_q) starts -> their fits, point costs and DIP-PIP terms
+        K = S.shape[1]
+        lmK = jax.tree_util.tree_map(lambda x: jnp.repeat(x, K, axis=0), lm)
+        res = fit_landmarks_batch(model, rig, lmK, S.reshape(T * K, model.n_q), config=batch_config, lmap=lmap)
+        cost = np.asarray(_point_costs(model, rig, lmap, lmK, res.q)).reshape(T, K, 21)
+        coupled = np.asarray(jax.vmap(coupling)(res.q)).reshape(T, K, -1) ** 2
+        pool.append((np.asarray(res.q).reshape(T, K, model.n_q), cost, coupled))
+        return _choose(model, lmap, config, *(np.concatenate(x, axis=1) for x in zip(*pool)))
+
+    q = refine(starts)
+    for _ in range(jumps):
+        # the path's neighbours as starts carry a branch found in one frame to the next
+        near = np.stack([np.concatenate([q[:1], q[:-1]]), np.concatenate([q[1:], q[-1:]])], axis=1)
+        q_new = refine(np.concatenate([jump_starts(model, rig[0], q, blocks), near], axis=1))
+        if np.array_equal(q_new, q):
+            break
+        q = q_new
     return q

@@ -11,6 +11,10 @@ Unknowns: ``Q`` (frames, n_q), one state per frame, and ``theta`` (p,), the shap
 - per triple of consecutive frames, ``a * (Q_{t+1} - 2 Q_t + Q_{t-1})`` with ``a`` =
   ``accel_px_per_rad`` / ``accel_px_per_mm`` (off by default): a penalty on acceleration, which
   unlike the first difference does not pull a steady motion towards standing still;
+- per frame and finger, the DIP-PIP coupling ``c (q_dip - rho q_pip)`` of
+  :func:`jaxhand.priors.dip_pip_coupling` with ``c`` = ``dip_pip_px_per_rad`` (off by default): a
+  finger's distal joint follows its middle one, which leaves one camera fewer mirror branches and
+  the short distal link's noise less room;
 - a prior ``w_s (s - 1)`` on each scale and ``w_o o`` on each palm offset (mm), which keeps
   directions no landmark sees (and one camera's scale-depth ambiguity) determined.
 
@@ -36,12 +40,13 @@ from jaxtyping import Array, Float
 from .._errors import InputError
 from ..camera import as_rig
 from ..model import Model
+from ..priors import DIP_PIP_RATIO, DipPipCoupling, dip_pip_coupling
 from ..solve import StateSpace
 from ._convention import LandmarkMap, landmark_map
 from ._residuals import LandmarkArgs, Landmarks, landmark_residuals
 from ._shape import HandShape, apply_shape
 
-__all__ = ["SequenceConfig", "SequenceResult", "fit_sequence"]
+__all__ = ["SequenceConfig", "SequenceResult", "fit_sequence", "sequence_coupling"]
 
 
 def _f(x):
@@ -64,6 +69,9 @@ class SequenceConfig(eqx.Module):
             real video's fit drove phalanges to the 0.5 and 1.7 bounds); calibration with 3-D
             points uses 1 (:func:`~jaxhand.landmarks.calibrate_landmarks`).
         offset_prior_px_per_mm: traced. Weight of a palm offset (px per mm); calibration uses 0.1.
+        dip_pip_px_per_rad: traced. Weight of every finger's ``q_dip - dip_pip_ratio * q_pip`` per
+            frame (px per rad); 0: off.
+        dip_pip_ratio: traced. DIP flexion over PIP flexion in that term.
         scale_bounds: traced (2,). Scales are clipped into [lo, hi].
         offset_bound_mm: traced. Palm offsets are clipped into [-bound, bound] mm.
         ftol: traced, relative. Stop when an accepted step lowers the cost by <= ftol * cost.
@@ -77,6 +85,8 @@ class SequenceConfig(eqx.Module):
     accel_px_per_mm: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
     scale_prior_px: Float[Array, ""] = eqx.field(converter=_f, default=20.0)
     offset_prior_px_per_mm: Float[Array, ""] = eqx.field(converter=_f, default=1.0)
+    dip_pip_px_per_rad: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
+    dip_pip_ratio: Float[Array, ""] = eqx.field(converter=_f, default=DIP_PIP_RATIO)
     scale_bounds: Float[Array, " 2"] = eqx.field(converter=_f, default=(0.5, 2.0))
     offset_bound_mm: Float[Array, ""] = eqx.field(converter=_f, default=30.0)
     ftol: Float[Array, ""] = eqx.field(converter=_f, default=1e-9)
@@ -90,7 +100,7 @@ class SequenceResult(eqx.Module):
         q: (frames, n_q) states.
         theta: (p,) the shape (empty without one).
         cost: final total cost (px^2), ``start_cost`` the first.
-        data_cost: (frames,) landmark cost per frame at the result (px^2).
+        data_cost: (frames,) landmark and DIP-PIP cost per frame at the result (px^2).
         iterations: trials taken; converged: the cost rule fired.
     """
 
@@ -197,6 +207,13 @@ class _Problem(eqx.Module):
     shape: HandShape | None
     landmarks: Landmarks          # leading frame axis
     theta0: Array
+    coupling: DipPipCoupling      # weights in px per rad
+
+
+def sequence_coupling(model: Model, config: SequenceConfig) -> DipPipCoupling:
+    """The DIP-PIP term of ``config`` on ``model`` (residuals in px; no finger: none)."""
+    c = dip_pip_coupling(model, weight=1.0, ratio=float(config.dip_pip_ratio))
+    return eqx.tree_at(lambda t: t.weight, c, c.weight * config.dip_pip_px_per_rad)
 
 
 def _unit_weights(model: Model, config: SequenceConfig, dtype):
@@ -218,7 +235,8 @@ def _prior_weights(shape: HandShape | None, config: SequenceConfig, dtype):
 
 def _frame_residuals(prob: _Problem, q, theta, lm):
     model = prob.model if prob.shape is None else apply_shape(prob.model, prob.shape, theta)
-    return landmark_residuals(q, LandmarkArgs(model=model, cameras=prob.cameras, lmap=prob.lmap, landmarks=lm))
+    r = landmark_residuals(q, LandmarkArgs(model=model, cameras=prob.cameras, lmap=prob.lmap, landmarks=lm))
+    return jnp.concatenate([r, prob.coupling(q)])
 
 
 def _total_cost(prob, config, Q, theta):
@@ -371,5 +389,6 @@ def fit_sequence(model: Model, cameras, landmarks: Landmarks, q_init, *, shape: 
     dtype = jnp.asarray(0.0).dtype
     lm = jax.tree_util.tree_map(lambda x: jnp.asarray(x, dtype=bool if x.dtype == bool else dtype), landmarks)
     lmap = landmark_map(model) if lmap is None else lmap
-    prob = _Problem(model=model, cameras=rig, lmap=lmap, shape=shape, landmarks=lm, theta0=jnp.asarray(th))
+    prob = _Problem(model=model, cameras=rig, lmap=lmap, shape=shape, landmarks=lm, theta0=jnp.asarray(th),
+                    coupling=sequence_coupling(model, config))
     return _solve(prob, jnp.asarray(Q0), config)

@@ -29,10 +29,9 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from .._errors import InputError
-from ..camera import Perspective
 from ..features import Features
 from ..filter import GHKState
-from ..kinematics import clip_q, pose
+from ..kinematics import clip_q, fold_hinges, fold_turns
 from ..model import Model
 from ..residuals import ResidualArgs, feature_distances, residuals_and_jacobian
 from ._compiled import SCALARS, _Solved, _Static, features_ok, finish_frame, solve_frame, step_constants
@@ -69,25 +68,6 @@ def flip_starts(model: Model, rig: tuple, feats: tuple, q_pred, n: int, flip_rad
     return jax.vmap(lambda q: clip_q(model, q))(starts)
 
 
-def _fold_joints(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For every flippable hinge: its q entry, its frame, and the first link it moves (the link
-    of its own frame, else of its nearest descendant frame)."""
-    children = {f: [c for c, p in enumerate(model.parents) if p == f] for f in range(len(model.parents))}
-    rows = []
-    for i in _flippable(model):
-        frame = model.q_index.index(i)
-        if model.joint_kinds[frame] != "revolute":
-            continue
-        queue = [frame]
-        while queue:
-            f = queue.pop(0)
-            if f in model.link_frame:
-                rows.append((i, frame, model.link_frame.index(f)))
-                break
-            queue.extend(children[f])
-    return tuple(np.array(c, int) for c in zip(*rows)) if rows else (np.zeros(0, int),) * 3
-
-
 def fold_starts(model: Model, camera, q_pred, n: int) -> Float[Array, "n nq"]:
     """``n`` starts from ``q_pred``, each with one hinge reflected across its fold: the angle at
     which the link it moves lies across the viewing ray. Both sides of the fold show the link
@@ -95,29 +75,10 @@ def fold_starts(model: Model, camera, q_pred, n: int) -> Float[Array, "n nq"]:
     orthographic camera and a hinge axis across the ray): the ambiguity a single view leaves
     (Sminchisescu and Triggs 2003, kinematic jumps). The hinges closest to their fold go first;
     a hinge whose link never lies across the ray gives the prediction itself."""
-    joints, frames, links = _fold_joints(model)
+    joints, _, _ = fold_hinges(model)
     if n == 0 or len(joints) == 0:
         return jnp.broadcast_to(q_pred, (n,) + q_pred.shape)
-    p = pose(model, q_pred)
-    omega, origin = p.frames[frames, :3, 2], p.frames[frames, :3, 3]
-    d = p.link_end[links] - p.link_start[links]
-    d = d / jnp.linalg.norm(d, axis=-1, keepdims=True)
-    if isinstance(camera, Perspective):
-        ray = origin + camera.R.T @ camera.t     # from the camera centre -R^T t to the joint
-        ray = ray / jnp.linalg.norm(ray, axis=-1, keepdims=True)
-    else:
-        ray = jnp.broadcast_to(camera.R[2], origin.shape)
-    # depth of the turned link: A cos(x) + B sin(x) + C; the fold is where it is 0
-    wd, wv = jnp.sum(omega * d, -1), jnp.sum(omega * ray, -1)
-    A = jnp.sum(ray * d, -1) - wd * wv
-    B = jnp.sum(ray * jnp.cross(omega, d), -1)
-    C = wd * wv
-    R = jnp.sqrt(A * A + B * B) + 1e-12          # Guard: a link along its own axis
-    ok = jnp.abs(C) < R
-    phi, half = jnp.arctan2(B, A), jnp.arccos(jnp.clip(-C / R, -1.0, 1.0))
-    turns = jnp.stack([phi + half, phi - half], -1)
-    turns = jnp.arctan2(jnp.sin(turns), jnp.cos(turns))
-    fold = jnp.take_along_axis(turns, jnp.argmin(jnp.abs(turns), -1)[:, None], -1)[:, 0]
+    fold, ok = fold_turns(model, camera, q_pred)
     target = jnp.clip(q_pred[joints] + 2 * fold, model.q_lower[joints], model.q_upper[joints])
     order = jnp.argsort(jnp.where(ok, jnp.abs(fold), jnp.inf))[np.arange(n) % len(joints)]
     value = jnp.where(ok[order], target[order], q_pred[jnp.asarray(joints)[order]])
