@@ -36,9 +36,10 @@ import numpy as np
 from ..camera import as_rig
 from ..kinematics import fold_hinges, fold_turns
 from ..model import Model
-from ._convention import LandmarkMap
+from ..kinematics import pose as pose_at
+from ._convention import FINGERS, POINT_NAMES, LandmarkMap, landmark_positions
 from ._fit import BatchConfig, _as_float_landmarks, fit_landmarks_batch
-from ._residuals import LandmarkArgs, Landmarks, _dependence, landmark_residuals
+from ._residuals import LandmarkArgs, Landmarks, _dependence, landmark_residuals, make_landmarks
 from ._sequence import SequenceConfig, _unit_weights, sequence_coupling
 
 __all__ = ["joint_starts", "jump_starts", "independent_blocks", "smoothest_paths", "START_FRACTIONS"]
@@ -90,28 +91,49 @@ def independent_blocks(model: Model, lmap: LandmarkMap) -> list[np.ndarray]:
 
 
 @eqx.filter_jit
-def _point_costs(model, rig, lmap, landmarks, Q):
-    """(B, 21) squared landmark residuals per point (all cameras and the 3-D entries)."""
+def _point_terms(model, rig, lmap, coupling, landmarks, Q):
+    """(B, 21) squared landmark residuals per point (all cameras and the 3-D entries), (B,
+    fingers) squared DIP-PIP residuals and (B, n_q, n_q) the Gauss-Newton matrix J^T J of both."""
     n = len(rig)
 
     def one(q, lm):
         r = landmark_residuals(q, LandmarkArgs(model=model, cameras=rig, lmap=lmap, landmarks=lm))
+        J = jnp.concatenate([jax.jacfwd(landmark_residuals)(q, LandmarkArgs(model=model, cameras=rig, lmap=lmap,
+                                                                            landmarks=lm)),
+                             jax.jacfwd(coupling)(q)])
         r2 = jnp.sum(r[: 2 * 21 * n].reshape(n, 21, 2) ** 2, axis=(0, 2))
-        return r2 + jnp.sum(r[2 * 21 * n:].reshape(21, 3) ** 2, axis=-1)
+        return r2 + jnp.sum(r[2 * 21 * n:].reshape(21, 3) ** 2, axis=-1), coupling(q) ** 2, J.T @ J
 
     return jax.vmap(one)(Q, landmarks)
 
 
-def _viterbi(unary: np.ndarray, Q: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Candidate index per frame minimising sum_t unary[t, k_t] + 0.5 |w (Q[t, k_t] - Q[t-1, k_{t-1}])|^2.
+def _viterbi(unary: np.ndarray, Q: np.ndarray, w: np.ndarray, H: np.ndarray | None = None) -> np.ndarray:
+    """Candidate index per frame minimising sum_t unary[t, k_t] + pair(t-1, t).
 
-    unary (T, K); Q (T, K, m) the block's entries; w (m,) the smoothness weights."""
+    unary (T, K); Q (T, K, m) the block's entries; w (m,) the smoothness weights. Without H,
+    pair = 0.5 |w (Q[t, k_t] - Q[t-1, k_{t-1}])|^2. With H (T, K, m, m), each candidate's
+    Gauss-Newton matrix, pair = 0.5 d^T (Ha^-1 + Hb^-1 + W^-1)^-1 d, d = Q[t, b] - Q[t-1, a]:
+    the least smoothness plus data cost of two states near the candidates, each a quadratic
+    about its candidate. A direction the landmarks hardly see (a finger near its fold, seen
+    by one camera) then costs little to jitter along, so a branch whose per-frame fits scatter
+    along it is not outweighed by a smoother wrong one."""
     T, K = unary.shape
+    m = Q.shape[-1]
+    if H is not None:
+        # Guard: a direction no landmark sees has H ~ 0; the floor keeps the inverse finite
+        # (1e3 rad^2 of spread: free).
+        S = np.linalg.inv(H + 1e-3 * np.eye(m))                      # (T, K, m, m)
+        Winv = np.diag(1.0 / np.maximum(w * w, 1e-12))
     V = unary[0].copy()
     back = np.zeros((T, K), int)
     for t in range(1, T):
-        d = (Q[t][None, :, :] - Q[t - 1][:, None, :]) * w           # (K prev, K now, m)
-        total = V[:, None] + 0.5 * np.sum(d * d, axis=-1)
+        d = Q[t][None, :, :] - Q[t - 1][:, None, :]                  # (K prev, K now, m)
+        if H is None:
+            pair = 0.5 * np.sum((d * w) ** 2, axis=-1)
+        else:
+            M = S[t - 1][:, None] + S[t][None, :] + Winv
+            pair = 0.5 * np.sum(d * np.linalg.solve(M, d[..., None])[..., 0], axis=-1)
+        total = V[:, None] + pair
         back[t] = np.argmin(total, axis=0)
         V = unary[t] + total[back[t], np.arange(K)]
     path = np.zeros(T, int)
@@ -130,6 +152,12 @@ def _jump(model, camera, Q, hinge, mask):
     turn, ok = jax.vmap(lambda q: fold_turns(model, camera, q))(Q)
     value = jnp.clip(Q[:, joint] + 2 * turn[:, hinge], model.q_lower[joint], model.q_upper[joint])
     return Q.at[:, joint].set(jnp.where(mask & ok[:, hinge], value, Q[:, joint]))
+
+
+import os
+JUMP_KIND = os.environ.get("JUMP_KIND", "both")
+VITERBI_KIND = os.environ.get("VITERBI_KIND", "gauss")
+COUPLED_FITS = os.environ.get("COUPLED_FITS", "1") == "1"
 
 
 def jump_starts(model: Model, camera, q, blocks) -> np.ndarray:
@@ -156,9 +184,45 @@ def jump_starts(model: Model, camera, q, blocks) -> np.ndarray:
     return np.asarray(Q).reshape(T, P, model.n_q)
 
 
-def _choose(model, lmap, config, Q, cost, coupled) -> np.ndarray:
+#: Each finger's landmark chain in :data:`POINT_NAMES` order, from its root (the point the palm
+#: carries) to its tip.
+CHAINS = tuple(tuple(POINT_NAMES.index(f"{f}_{j}") for j in joints)
+               for f, joints in (("thumb", ("cmc", "mcp", "ip", "tip")),) + tuple(
+                   (f, ("mcp", "pip", "dip", "tip")) for f in FINGERS))
+
+
+def depth_branches(model: Model, camera, px: np.ndarray, q: np.ndarray, lmap: LandmarkMap) -> np.ndarray:
+    """(T, 2^k, 21, 3) world points of every depth branch of the landmarks ``px`` (T, 21, 2) seen
+    by ``camera`` (k = 3 segments per chain of :data:`CHAINS`), NaN where undetermined.
+
+    Each chain starts at its root's position in the model at q (T, n_q); each next point lies on
+    its pixel's viewing ray at the segment's length (the model's, at q) from the point before: the
+    nearer or the farther of the two intersections, as bit j of the branch index says for
+    segment j (Taylor 2000). A ray that misses the sphere gives its point nearest to it. Branch b
+    applies to every chain at once; each chain's q entries are an independent block."""
+    P = np.asarray(jax.vmap(lambda x: landmark_positions(model, lmap, pose_at(model, x), x))(jnp.asarray(q)))
+    origin = np.asarray(camera.unproject(jnp.asarray(px), jnp.zeros(px.shape[:-1])))
+    ray = np.asarray(camera.unproject(jnp.asarray(px), jnp.ones(px.shape[:-1]))) - origin
+    ray /= np.linalg.norm(ray, axis=-1, keepdims=True)
+    k = max(len(c) for c in CHAINS) - 1
+    out = np.full((px.shape[0], 2 ** k, 21, 3), np.nan)
+    for branch in range(2 ** k):
+        for chain in CHAINS:
+            prev = P[:, chain[0]]
+            for j, (a, b) in enumerate(zip(chain[:-1], chain[1:])):
+                length = np.linalg.norm(P[:, b] - P[:, a], axis=-1)
+                c = np.sum(ray[:, b] * (prev - origin[:, b]), -1)          # along the ray to the closest point
+                h2 = c * c - np.sum((prev - origin[:, b]) ** 2, -1) + length ** 2
+                s = c + (1 if branch >> j & 1 else -1) * np.sqrt(np.maximum(h2, 0.0))
+                prev = origin[:, b] + s[:, None] * ray[:, b]
+                out[:, branch, b] = prev
+    return out
+
+
+def _choose(model, lmap, config, Q, cost, coupled, H) -> np.ndarray:
     """Per independent block, the Viterbi path through the candidates Q (T, K, n_q) with the
-    point costs ``cost`` (T, K, 21) and squared DIP-PIP residuals ``coupled`` (T, K, fingers)."""
+    point costs ``cost`` (T, K, 21), squared DIP-PIP residuals ``coupled`` (T, K, fingers) and
+    Gauss-Newton matrices H (T, K, n_q, n_q)."""
     T = Q.shape[0]
     dep = _dependence(model, lmap)
     w = np.asarray(_unit_weights(model, config, jnp.asarray(0.0).dtype))
@@ -167,7 +231,8 @@ def _choose(model, lmap, config, Q, cost, coupled) -> np.ndarray:
     for block in independent_blocks(model, lmap):
         points = dep[:, block].any(axis=1)
         unary = 0.5 * (cost[..., points].sum(-1) + coupled[..., np.isin(pip, block)].sum(-1))
-        path = _viterbi(unary, Q[..., block], w[block])
+        Hb = H[..., block[:, None], block[None, :]] if VITERBI_KIND == "gauss" else None
+        path = _viterbi(unary, Q[..., block], w[block], Hb)
         q[:, block] = Q[np.arange(T), path][:, block]
     return q
 
@@ -203,17 +268,30 @@ def smoothest_paths(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkM
     def refine(S):               # (T, K, n_q) starts -> their fits, point costs and DIP-PIP terms
         K = S.shape[1]
         lmK = jax.tree_util.tree_map(lambda x: jnp.repeat(x, K, axis=0), lm)
-        res = fit_landmarks_batch(model, rig, lmK, S.reshape(T * K, model.n_q), config=batch_config, lmap=lmap)
-        cost = np.asarray(_point_costs(model, rig, lmap, lmK, res.q)).reshape(T, K, 21)
-        coupled = np.asarray(jax.vmap(coupling)(res.q)).reshape(T, K, -1) ** 2
-        pool.append((np.asarray(res.q).reshape(T, K, model.n_q), cost, coupled))
+        res = fit_landmarks_batch(model, rig, lmK, S.reshape(T * K, model.n_q), config=batch_config, lmap=lmap,
+                                  coupling=coupling if COUPLED_FITS else None)
+        cost, coupled, H = (np.asarray(x) for x in _point_terms(model, rig, lmap, coupling, lmK, res.q))
+        pool.append((np.asarray(res.q).reshape(T, K, model.n_q), cost.reshape(T, K, 21),
+                     coupled.reshape(T, K, -1), H.reshape(T, K, model.n_q, model.n_q)))
         return _choose(model, lmap, config, *(np.concatenate(x, axis=1) for x in zip(*pool)))
 
     q = refine(starts)
+    px0 = np.where(np.asarray(lm.px_valid)[:, 0, :, None], np.asarray(lm.px)[:, 0], np.nan)
     for _ in range(jumps):
         # the path's neighbours as starts carry a branch found in one frame to the next
         near = np.stack([np.concatenate([q[:1], q[:-1]]), np.concatenate([q[1:], q[-1:]])], axis=1)
-        q_new = refine(np.concatenate([jump_starts(model, rig[0], q, blocks), near], axis=1))
+        S = [near]
+        if JUMP_KIND in ("folds", "both"):
+            S.append(jump_starts(model, rig[0], q, blocks))
+        if JUMP_KIND in ("branches", "both"):
+            X = depth_branches(model, rig[0], px0, q, lmap)                  # (T, B, 21, 3)
+            B = X.shape[1]
+            lm3 = jax.tree_util.tree_map(lambda x: jnp.repeat(x, B, axis=0), lm)
+            to3 = make_landmarks(np.asarray(lm3.px), px_valid=np.asarray(lm3.px_valid), mm=X.reshape(T * B, 21, 3),
+                                 mm_weight=1.0, frame_3d="world")
+            r3 = fit_landmarks_batch(model, rig, to3, np.repeat(q, B, axis=0), config=batch_config, lmap=lmap)
+            S.append(np.asarray(r3.q).reshape(T, B, model.n_q))
+        q_new = refine(np.concatenate(S, axis=1))
         if np.array_equal(q_new, q):
             break
         q = q_new
