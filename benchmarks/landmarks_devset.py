@@ -85,9 +85,9 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--smooth", type=float, default=30.0, help="SequenceConfig.smooth_px_per_rad")
     ap.add_argument("--accel", type=float, default=0.0, help="SequenceConfig.accel_px_per_rad")
-    ap.add_argument("--dip-pip", type=float, default=0.0, help="SequenceConfig.dip_pip_px_per_rad")
+    ap.add_argument("--dip-pip", type=float, default=11.5, help="SequenceConfig.dip_pip_px_per_rad")
     ap.add_argument("--dip-pip-ratio", type=float, default=2.0 / 3.0, help="SequenceConfig.dip_pip_ratio")
-    ap.add_argument("--dip-pip-prior", type=float, default=0.0,
+    ap.add_argument("--dip-pip-prior", type=float, default=20.0,
                     help="SequenceConfig.dip_pip_ratio_prior_px (> 0: the ratio is estimated)")
     ap.add_argument("--steps", type=int, default=300, help="SequenceConfig.max_steps")
     ap.add_argument("--init", default="auto", help="fit_landmark_sequence's init")

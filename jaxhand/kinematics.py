@@ -14,13 +14,12 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from ._errors import InputError
-from .camera import Camera, Perspective
+from .camera import Camera
 from .model import Model
 
 __all__ = ["dh_transform", "dh_transforms", "quat_to_rotation", "base_pose", "frame_poses", "Pose", "View",
            "pose", "forward", "project_pose", "check_q_shape", "views", "link_points", "validate_q", "random_q",
-           "clip_q", "normalize_q", "clip_to_limits", "normalize_quaternion", "Pills", "occluder_pills", "all_pills",
-           "fold_hinges", "fold_turns"]
+           "clip_q", "normalize_q", "clip_to_limits", "normalize_quaternion", "Pills", "occluder_pills", "all_pills"]
 
 
 def dh_transform(alpha, a, d, theta):
@@ -319,61 +318,3 @@ def random_q(model: Model, rng: np.random.Generator, n: int | None = None, *, ma
     elif model.base_kind == "planar":
         q[..., :2] = q0[:2] + rng.uniform(-translation_mm, translation_mm, size=shape + (2,))
     return q
-
-
-def fold_hinges(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Every revolute joint angle past the base with the link it moves, for :func:`fold_turns`:
-    (q entries, their frames, and per entry the link of its own frame, else of its nearest
-    descendant frame), each (hinges,) int; hinges that move no link are left out."""
-    children = {f: [c for c, p in enumerate(model.parents) if p == f] for f in range(len(model.parents))}
-    rows = []
-    for i, kind in enumerate(model.q_kinds):
-        if kind != "angle" or i < model.n_base_q:
-            continue
-        frame = model.q_index.index(i)
-        if model.joint_kinds[frame] != "revolute":
-            continue
-        queue = [frame]
-        while queue:
-            f = queue.pop(0)
-            if f in model.link_frame:
-                rows.append((i, frame, model.link_frame.index(f)))
-                break
-            queue.extend(children[f])
-    return tuple(np.array(c, int) for c in zip(*rows)) if rows else (np.zeros(0, int),) * 3
-
-
-def fold_turns(model: Model, camera: Camera, q: Float[ArrayLike, " nq"]
-               ) -> tuple[Float[Array, " hinges"], Array]:
-    """Per hinge of :func:`fold_hinges`, the turn (rad, signed, the smaller of two) that brings
-    the link it moves across the viewing ray, its fold, and whether it has one (a link that
-    never lies across the ray has none; its turn is then meaningless).
-
-    ``q + 2 * turn`` at that hinge is its kinematic jump (Sminchisescu and Triggs 2003): the link
-    reflected across its fold lies at nearly the same place in the image with its depth reversed
-    (exactly so for an orthographic camera and a hinge axis across the ray), the ambiguity one
-    view leaves. With the hinge axis w, the link direction d and the ray v (from a perspective
-    camera's centre to the joint), the link's depth after a turn x is A cos x + B sin x + C with
-    A = v.d - (w.d)(w.v), B = v.(w x d), C = (w.d)(w.v); the fold is where it is 0.
-    """
-    joints, frames, links = fold_hinges(model)
-    p = pose(model, q)
-    omega, origin = p.frames[frames, :3, 2], p.frames[frames, :3, 3]
-    d = p.link_end[links] - p.link_start[links]
-    d = d / jnp.linalg.norm(d, axis=-1, keepdims=True)
-    if isinstance(camera, Perspective):
-        ray = origin + camera.R.T @ camera.t     # from the camera centre -R^T t to the joint
-        ray = ray / jnp.linalg.norm(ray, axis=-1, keepdims=True)
-    else:
-        ray = jnp.broadcast_to(camera.R[2], origin.shape)
-    wd, wv = jnp.sum(omega * d, -1), jnp.sum(omega * ray, -1)
-    A = jnp.sum(ray * d, -1) - wd * wv
-    B = jnp.sum(ray * jnp.cross(omega, d), -1)
-    C = wd * wv
-    R = jnp.sqrt(A * A + B * B) + 1e-12          # Guard: a link along its own axis
-    ok = jnp.abs(C) < R
-    phi, half = jnp.arctan2(B, A), jnp.arccos(jnp.clip(-C / R, -1.0, 1.0))
-    turns = jnp.stack([phi + half, phi - half], -1)
-    turns = jnp.arctan2(jnp.sin(turns), jnp.cos(turns))
-    turn = jnp.take_along_axis(turns, jnp.argmin(jnp.abs(turns), -1)[:, None], -1)[:, 0]
-    return turn, ok

@@ -16,14 +16,19 @@ sequence solve a start that chooses the branch from the whole sequence:
 3. per block, the path through the frames' candidates that minimises the landmark cost of the
    block's points and its fingers' DIP-PIP term plus the first-difference smoothness term of
    :class:`~jaxhand.landmarks.SequenceConfig` (the sequence objective without its shape terms),
-   found by dynamic programming (Viterbi: O(frames x candidates^2) per block);
-4. ``jumps`` rounds: every frame of the chosen path also from its kinematic jumps
-   (:func:`jump_starts`: in each block, every subset of its hinges reflected across the folds
-   where their links lie across the viewing ray, :func:`~jaxhand.kinematics.fold_turns`) and
-   from the path's states at the frames before and after; the refined fits join the candidates
-   and step 3 runs again over all of them. A finger's mirror branch that no fixed start reached
-   is one jump away from the branch that was, and what one frame finds spreads to its
-   neighbours. The rounds stop early when the path no longer changes.
+   found by dynamic programming (Viterbi: O(frames x candidates^2) per block). The cost of a
+   step between two candidates is the least smoothness plus data cost of two states near them,
+   each candidate's data cost a quadratic about it (its Gauss-Newton matrix): along a direction
+   the landmarks hardly see (a finger near its fold, seen by one camera) the fits scatter, and
+   that scatter must not make the right branch look rougher than a wrong one. The per-frame
+   fits carry the DIP-PIP term when the configuration has one, as the sequence solve does;
+4. ``rounds``: every frame also from the chosen path's states at the frames before and after,
+   the refined fits joining the candidates, and step 3 again (a branch one frame found spreads
+   to its neighbours); the rounds stop early when the path no longer changes;
+5. one path per smoothness scale: the weight that separates branches best differs from one
+   finger to the next, so the caller may solve the sequence from each and keep, per block, the
+   solve of least cost (:func:`block_costs`; :func:`~jaxhand.landmarks.fit_landmark_sequence`
+   does).
 """
 
 from __future__ import annotations
@@ -34,15 +39,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..camera import as_rig
-from ..kinematics import fold_hinges, fold_turns
 from ..model import Model
-from ..kinematics import pose as pose_at
-from ._convention import FINGERS, POINT_NAMES, LandmarkMap, landmark_positions
+from ._convention import LandmarkMap
 from ._fit import BatchConfig, _as_float_landmarks, fit_landmarks_batch
-from ._residuals import LandmarkArgs, Landmarks, _dependence, landmark_residuals, make_landmarks
-from ._sequence import SequenceConfig, _unit_weights, sequence_coupling
+from ._residuals import LandmarkArgs, Landmarks, _dependence, landmark_residuals
+from ._sequence import SequenceConfig, _accel_weights, _unit_weights, sequence_coupling
 
-__all__ = ["joint_starts", "jump_starts", "independent_blocks", "smoothest_paths", "START_FRACTIONS"]
+__all__ = ["joint_starts", "independent_blocks", "smoothest_paths", "block_costs", "START_FRACTIONS"]
 
 #: Fractions of each joint's range at which :func:`joint_starts` places the joints.
 START_FRACTIONS = (0.1, 0.3, 0.5, 0.7, 0.9)
@@ -107,32 +110,25 @@ def _point_terms(model, rig, lmap, coupling, landmarks, Q):
     return jax.vmap(one)(Q, landmarks)
 
 
-def _viterbi(unary: np.ndarray, Q: np.ndarray, w: np.ndarray, H: np.ndarray | None = None) -> np.ndarray:
+def _viterbi(unary: np.ndarray, Q: np.ndarray, w: np.ndarray, H: np.ndarray) -> np.ndarray:
     """Candidate index per frame minimising sum_t unary[t, k_t] + pair(t-1, t).
 
-    unary (T, K); Q (T, K, m) the block's entries; w (m,) the smoothness weights. Without H,
-    pair = 0.5 |w (Q[t, k_t] - Q[t-1, k_{t-1}])|^2. With H (T, K, m, m), each candidate's
-    Gauss-Newton matrix, pair = 0.5 d^T (Ha^-1 + Hb^-1 + W^-1)^-1 d, d = Q[t, b] - Q[t-1, a]:
-    the least smoothness plus data cost of two states near the candidates, each a quadratic
-    about its candidate. A direction the landmarks hardly see (a finger near its fold, seen
-    by one camera) then costs little to jitter along, so a branch whose per-frame fits scatter
-    along it is not outweighed by a smoother wrong one."""
+    unary (T, K); Q (T, K, m) the block's entries; w (m,) the smoothness weights; H (T, K, m, m)
+    each candidate's Gauss-Newton matrix. pair = 0.5 d^T (Ha^-1 + Hb^-1 + W^-1)^-1 d with
+    d = Q[t, b] - Q[t-1, a] and W = diag(w^2): the least of 0.5 (x - a)^T Ha (x - a) +
+    0.5 (y - b)^T Hb (y - b) + 0.5 |w (y - x)|^2 over the two states x, y."""
     T, K = unary.shape
     m = Q.shape[-1]
-    if H is not None:
-        # Guard: a direction no landmark sees has H ~ 0; the floor keeps the inverse finite
-        # (1e3 rad^2 of spread: free).
-        S = np.linalg.inv(H + 1e-3 * np.eye(m))                      # (T, K, m, m)
-        Winv = np.diag(1.0 / np.maximum(w * w, 1e-12))
+    # Guard: a direction no landmark sees has H ~ 0; the floor keeps the inverse finite
+    # (1e3 rad^2 of spread: free).
+    S = np.linalg.inv(H + 1e-3 * np.eye(m))                          # (T, K, m, m)
+    Winv = np.diag(1.0 / np.maximum(w * w, 1e-12))
     V = unary[0].copy()
     back = np.zeros((T, K), int)
     for t in range(1, T):
         d = Q[t][None, :, :] - Q[t - 1][:, None, :]                  # (K prev, K now, m)
-        if H is None:
-            pair = 0.5 * np.sum((d * w) ** 2, axis=-1)
-        else:
-            M = S[t - 1][:, None] + S[t][None, :] + Winv
-            pair = 0.5 * np.sum(d * np.linalg.solve(M, d[..., None])[..., 0], axis=-1)
+        M = S[t - 1][:, None] + S[t][None, :] + Winv
+        pair = 0.5 * np.sum(d * np.linalg.solve(M, d[..., None])[..., 0], axis=-1)
         total = V[:, None] + pair
         back[t] = np.argmin(total, axis=0)
         V = unary[t] + total[back[t], np.arange(K)]
@@ -143,113 +139,40 @@ def _viterbi(unary: np.ndarray, Q: np.ndarray, w: np.ndarray, H: np.ndarray | No
     return path
 
 
-@eqx.filter_jit
-def _jump(model, camera, Q, hinge, mask):
-    """Q (B, n_q) with hinge ``hinge`` (traced) of :func:`~jaxhand.kinematics.fold_hinges`
-    reflected across its fold where ``mask`` (B,) is set and the fold exists, clipped into the
-    limits."""
-    joint = jnp.asarray(fold_hinges(model)[0])[hinge]
-    turn, ok = jax.vmap(lambda q: fold_turns(model, camera, q))(Q)
-    value = jnp.clip(Q[:, joint] + 2 * turn[:, hinge], model.q_lower[joint], model.q_upper[joint])
-    return Q.at[:, joint].set(jnp.where(mask & ok[:, hinge], value, Q[:, joint]))
-
-
-import os
-JUMP_KIND = os.environ.get("JUMP_KIND", "both")
-VITERBI_KIND = os.environ.get("VITERBI_KIND", "gauss")
-COUPLED_FITS = os.environ.get("COUPLED_FITS", "1") == "1"
-
-
-def jump_starts(model: Model, camera, q, blocks) -> np.ndarray:
-    """(T, P, n_q) kinematic jumps of the states q (T, n_q): start p reflects, in every block of
-    ``blocks`` at once, one non-empty subset of the block's hinges across their folds (the
-    blocks' subsets cycle through all 2^k - 1 of a block with k hinges; P is the largest count),
-    one hinge after the other along q, each fold taken at the state the previous jumps left."""
-    hinges = fold_hinges(model)[0]
-    T = q.shape[0]
-    own = [np.nonzero(np.isin(hinges, b))[0] for b in blocks]
-    P = max([2 ** len(h) - 1 for h in own] + [0])
-    if P == 0:
-        return np.zeros((T, 0, model.n_q))
-    mask = np.zeros((P, len(hinges)), bool)
-    for h in own:
-        for p in range(P):
-            bits = p % (2 ** len(h) - 1) + 1
-            mask[p, h] = [(bits >> i) & 1 for i in range(len(h))]
-    Q = jnp.asarray(np.repeat(np.asarray(q, float)[:, None], P, axis=1).reshape(T * P, model.n_q))
-    full = np.tile(mask, (T, 1))
-    for k in range(len(hinges)):
-        if full[:, k].any():
-            Q = _jump(model, camera, Q, jnp.asarray(k), jnp.asarray(full[:, k]))
-    return np.asarray(Q).reshape(T, P, model.n_q)
-
-
-#: Each finger's landmark chain in :data:`POINT_NAMES` order, from its root (the point the palm
-#: carries) to its tip.
-CHAINS = tuple(tuple(POINT_NAMES.index(f"{f}_{j}") for j in joints)
-               for f, joints in (("thumb", ("cmc", "mcp", "ip", "tip")),) + tuple(
-                   (f, ("mcp", "pip", "dip", "tip")) for f in FINGERS))
-
-
-def depth_branches(model: Model, camera, px: np.ndarray, q: np.ndarray, lmap: LandmarkMap) -> np.ndarray:
-    """(T, 2^k, 21, 3) world points of every depth branch of the landmarks ``px`` (T, 21, 2) seen
-    by ``camera`` (k = 3 segments per chain of :data:`CHAINS`), NaN where undetermined.
-
-    Each chain starts at its root's position in the model at q (T, n_q); each next point lies on
-    its pixel's viewing ray at the segment's length (the model's, at q) from the point before: the
-    nearer or the farther of the two intersections, as bit j of the branch index says for
-    segment j (Taylor 2000). A ray that misses the sphere gives its point nearest to it. Branch b
-    applies to every chain at once; each chain's q entries are an independent block."""
-    P = np.asarray(jax.vmap(lambda x: landmark_positions(model, lmap, pose_at(model, x), x))(jnp.asarray(q)))
-    origin = np.asarray(camera.unproject(jnp.asarray(px), jnp.zeros(px.shape[:-1])))
-    ray = np.asarray(camera.unproject(jnp.asarray(px), jnp.ones(px.shape[:-1]))) - origin
-    ray /= np.linalg.norm(ray, axis=-1, keepdims=True)
-    k = max(len(c) for c in CHAINS) - 1
-    out = np.full((px.shape[0], 2 ** k, 21, 3), np.nan)
-    for branch in range(2 ** k):
-        for chain in CHAINS:
-            prev = P[:, chain[0]]
-            for j, (a, b) in enumerate(zip(chain[:-1], chain[1:])):
-                length = np.linalg.norm(P[:, b] - P[:, a], axis=-1)
-                c = np.sum(ray[:, b] * (prev - origin[:, b]), -1)          # along the ray to the closest point
-                h2 = c * c - np.sum((prev - origin[:, b]) ** 2, -1) + length ** 2
-                s = c + (1 if branch >> j & 1 else -1) * np.sqrt(np.maximum(h2, 0.0))
-                prev = origin[:, b] + s[:, None] * ray[:, b]
-                out[:, branch, b] = prev
-    return out
-
-
-def _choose(model, lmap, config, Q, cost, coupled, H) -> np.ndarray:
+def _choose(model, lmap, config, scale, Q, cost, coupled, H) -> np.ndarray:
     """Per independent block, the Viterbi path through the candidates Q (T, K, n_q) with the
-    point costs ``cost`` (T, K, 21), squared DIP-PIP residuals ``coupled`` (T, K, fingers) and
-    Gauss-Newton matrices H (T, K, n_q, n_q)."""
+    point costs ``cost`` (T, K, 21), squared DIP-PIP residuals ``coupled`` (T, K, fingers),
+    Gauss-Newton matrices H (T, K, n_q, n_q) and the smoothness weights times ``scale``."""
     T = Q.shape[0]
     dep = _dependence(model, lmap)
-    w = np.asarray(_unit_weights(model, config, jnp.asarray(0.0).dtype))
+    w = scale * np.asarray(_unit_weights(model, config, jnp.asarray(0.0).dtype))
     pip = np.asarray(sequence_coupling(model, config).pip_index, int)
     q = Q[:, 0].copy()
     for block in independent_blocks(model, lmap):
         points = dep[:, block].any(axis=1)
         unary = 0.5 * (cost[..., points].sum(-1) + coupled[..., np.isin(pip, block)].sum(-1))
-        Hb = H[..., block[:, None], block[None, :]] if VITERBI_KIND == "gauss" else None
-        path = _viterbi(unary, Q[..., block], w[block], Hb)
+        path = _viterbi(unary, Q[..., block], w[block], H[..., block[:, None], block[None, :]])
         q[:, block] = Q[np.arange(T), path][:, block]
     return q
 
 
 def smoothest_paths(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkMap, *, candidates=None,
                     config: SequenceConfig | None = None, batch_config: BatchConfig | None = None,
-                    fractions=START_FRACTIONS, draws: int = 16, jumps: int = 2) -> np.ndarray:
-    """(T, n_q) start of a sequence fit: per independent block of joints, the smoothest low-cost
-    path through every frame's candidate fits (see the module docstring).
+                    fractions=START_FRACTIONS, draws: int = 16, rounds: int = 2,
+                    scales=(1.0,)) -> np.ndarray:
+    """(S, T, n_q) starts of a sequence fit, one per smoothness scale: per independent block of
+    joints, the smoothest low-cost path through every frame's candidate fits (see the module
+    docstring).
 
     Args:
         landmarks: (T, cams, 21, 2) batched :class:`Landmarks`.
         candidates: optional (C, T, n_q) states also offered per frame (refined like the starts);
             the starts of a moving base take their base entries from the first candidate.
-        config: the smoothness weights (:class:`~jaxhand.landmarks.SequenceConfig`).
+        config: the smoothness weights and the DIP-PIP term (:class:`~jaxhand.landmarks.SequenceConfig`).
         fractions, draws: the starts of :func:`joint_starts` (seed 0).
-        jumps: rounds of kinematic jumps (step 4 of the module docstring); 0: none.
+        rounds: rounds of neighbour starts (step 4); 0: none.
+        scales: (S,) factors on the smoothness weights of the paths' choice; each gives one path
+            (the rounds follow the first).
     """
     rig = as_rig(cameras)
     config = SequenceConfig() if config is None else config
@@ -261,38 +184,54 @@ def smoothest_paths(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkM
         starts[..., :model.n_base_q] = cand[:, :1, :model.n_base_q]          # the joint starts ride on the palm
         starts = np.concatenate([cand, starts], axis=1)
     coupling = sequence_coupling(model, config)
+    fit_coupling = coupling if float(config.dip_pip_px_per_rad) > 0 else None
     lm = _as_float_landmarks(landmarks)
-    blocks = independent_blocks(model, lmap)
     pool = []
 
-    def refine(S):               # (T, K, n_q) starts -> their fits, point costs and DIP-PIP terms
+    def refine(S):               # (T, K, n_q) starts -> their fits, point costs, DIP-PIP terms, J^T J
         K = S.shape[1]
         lmK = jax.tree_util.tree_map(lambda x: jnp.repeat(x, K, axis=0), lm)
         res = fit_landmarks_batch(model, rig, lmK, S.reshape(T * K, model.n_q), config=batch_config, lmap=lmap,
-                                  coupling=coupling if COUPLED_FITS else None)
+                                  coupling=fit_coupling)
         cost, coupled, H = (np.asarray(x) for x in _point_terms(model, rig, lmap, coupling, lmK, res.q))
         pool.append((np.asarray(res.q).reshape(T, K, model.n_q), cost.reshape(T, K, 21),
                      coupled.reshape(T, K, -1), H.reshape(T, K, model.n_q, model.n_q)))
-        return _choose(model, lmap, config, *(np.concatenate(x, axis=1) for x in zip(*pool)))
 
-    q = refine(starts)
-    px0 = np.where(np.asarray(lm.px_valid)[:, 0, :, None], np.asarray(lm.px)[:, 0], np.nan)
-    for _ in range(jumps):
-        # the path's neighbours as starts carry a branch found in one frame to the next
-        near = np.stack([np.concatenate([q[:1], q[:-1]]), np.concatenate([q[1:], q[-1:]])], axis=1)
-        S = [near]
-        if JUMP_KIND in ("folds", "both"):
-            S.append(jump_starts(model, rig[0], q, blocks))
-        if JUMP_KIND in ("branches", "both"):
-            X = depth_branches(model, rig[0], px0, q, lmap)                  # (T, B, 21, 3)
-            B = X.shape[1]
-            lm3 = jax.tree_util.tree_map(lambda x: jnp.repeat(x, B, axis=0), lm)
-            to3 = make_landmarks(np.asarray(lm3.px), px_valid=np.asarray(lm3.px_valid), mm=X.reshape(T * B, 21, 3),
-                                 mm_weight=1.0, frame_3d="world")
-            r3 = fit_landmarks_batch(model, rig, to3, np.repeat(q, B, axis=0), config=batch_config, lmap=lmap)
-            S.append(np.asarray(r3.q).reshape(T, B, model.n_q))
-        q_new = refine(np.concatenate(S, axis=1))
+    def choose(scale):
+        return _choose(model, lmap, config, scale, *(np.concatenate(x, axis=1) for x in zip(*pool)))
+
+    refine(starts)
+    q = choose(scales[0])
+    for _ in range(rounds):
+        # the path's states at the frames before and after as starts: a branch one frame found
+        # spreads to its neighbours
+        refine(np.stack([np.concatenate([q[:1], q[:-1]]), np.concatenate([q[1:], q[-1:]])], axis=1))
+        q_new = choose(scales[0])
         if np.array_equal(q_new, q):
             break
         q = q_new
-    return q
+    return np.stack([q] + [choose(s) for s in scales[1:]])
+
+
+def block_costs(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkMap, config: SequenceConfig, Q,
+                ratios) -> np.ndarray:
+    """(blocks,) the sequence objective of :func:`~jaxhand.landmarks.fit_sequence` (no shape)
+    split over :func:`independent_blocks`: each block's points, its fingers' DIP-PIP terms at the
+    ratios (fingers,) and their priors, and the smoothness of its entries, for states Q (T, n_q)."""
+    rig = as_rig(cameras)
+    coupling = eqx.tree_at(lambda c: c.ratio, sequence_coupling(model, config), jnp.asarray(ratios, float))
+    cost, coupled, _ = (np.asarray(x) for x in _point_terms(model, rig, lmap, coupling, _as_float_landmarks(landmarks),
+                                                           jnp.asarray(Q)))
+    dtype = jnp.asarray(0.0).dtype
+    w = np.asarray(_unit_weights(model, config, dtype))
+    a = np.asarray(_accel_weights(model, config, dtype))
+    prior = (float(config.dip_pip_ratio_prior_px) * (np.asarray(ratios) - float(config.dip_pip_ratio))) ** 2
+    pip = np.asarray(coupling.pip_index, int)
+    dep = _dependence(model, lmap)
+    d1, d2 = np.diff(Q, axis=0) * w, np.diff(Q, 2, axis=0) * a
+    out = []
+    for block in independent_blocks(model, lmap):
+        fingers = np.isin(pip, block)
+        out.append(0.5 * (cost[:, dep[:, block].any(axis=1)].sum() + coupled[:, fingers].sum() + prior[fingers].sum()
+                          + np.sum(d1[:, block] ** 2) + np.sum(d2[:, block] ** 2)))
+    return np.array(out)

@@ -29,9 +29,10 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from .._errors import InputError
+from ..camera import Perspective
 from ..features import Features
 from ..filter import GHKState
-from ..kinematics import clip_q, fold_hinges, fold_turns
+from ..kinematics import clip_q, pose
 from ..model import Model
 from ..residuals import ResidualArgs, feature_distances, residuals_and_jacobian
 from ._compiled import SCALARS, _Solved, _Static, features_ok, finish_frame, solve_frame, step_constants
@@ -41,7 +42,7 @@ __all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "image_merit", "ch
            "extra_starts", "LABELS"]
 
 #: The kinds of start, as :attr:`StepReport.hypothesis` names the winner's.
-LABELS = ("prediction", "flip", "fold", "last_solve", "carried", "proposal", "recover")
+LABELS = ("prediction", "flip", "fold", "last_solve", "rest", "carried", "proposal", "recover")
 
 
 def _flippable(model: Model) -> np.ndarray:
@@ -68,6 +69,25 @@ def flip_starts(model: Model, rig: tuple, feats: tuple, q_pred, n: int, flip_rad
     return jax.vmap(lambda q: clip_q(model, q))(starts)
 
 
+def _fold_joints(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For every flippable hinge: its q entry, its frame, and the first link it moves (the link
+    of its own frame, else of its nearest descendant frame)."""
+    children = {f: [c for c, p in enumerate(model.parents) if p == f] for f in range(len(model.parents))}
+    rows = []
+    for i in _flippable(model):
+        frame = model.q_index.index(i)
+        if model.joint_kinds[frame] != "revolute":
+            continue
+        queue = [frame]
+        while queue:
+            f = queue.pop(0)
+            if f in model.link_frame:
+                rows.append((i, frame, model.link_frame.index(f)))
+                break
+            queue.extend(children[f])
+    return tuple(np.array(c, int) for c in zip(*rows)) if rows else (np.zeros(0, int),) * 3
+
+
 def fold_starts(model: Model, camera, q_pred, n: int) -> Float[Array, "n nq"]:
     """``n`` starts from ``q_pred``, each with one hinge reflected across its fold: the angle at
     which the link it moves lies across the viewing ray. Both sides of the fold show the link
@@ -75,10 +95,29 @@ def fold_starts(model: Model, camera, q_pred, n: int) -> Float[Array, "n nq"]:
     orthographic camera and a hinge axis across the ray): the ambiguity a single view leaves
     (Sminchisescu and Triggs 2003, kinematic jumps). The hinges closest to their fold go first;
     a hinge whose link never lies across the ray gives the prediction itself."""
-    joints, _, _ = fold_hinges(model)
+    joints, frames, links = _fold_joints(model)
     if n == 0 or len(joints) == 0:
         return jnp.broadcast_to(q_pred, (n,) + q_pred.shape)
-    fold, ok = fold_turns(model, camera, q_pred)
+    p = pose(model, q_pred)
+    omega, origin = p.frames[frames, :3, 2], p.frames[frames, :3, 3]
+    d = p.link_end[links] - p.link_start[links]
+    d = d / jnp.linalg.norm(d, axis=-1, keepdims=True)
+    if isinstance(camera, Perspective):
+        ray = origin + camera.R.T @ camera.t     # from the camera centre -R^T t to the joint
+        ray = ray / jnp.linalg.norm(ray, axis=-1, keepdims=True)
+    else:
+        ray = jnp.broadcast_to(camera.R[2], origin.shape)
+    # depth of the turned link: A cos(x) + B sin(x) + C; the fold is where it is 0
+    wd, wv = jnp.sum(omega * d, -1), jnp.sum(omega * ray, -1)
+    A = jnp.sum(ray * d, -1) - wd * wv
+    B = jnp.sum(ray * jnp.cross(omega, d), -1)
+    C = wd * wv
+    R = jnp.sqrt(A * A + B * B) + 1e-12          # Guard: a link along its own axis
+    ok = jnp.abs(C) < R
+    phi, half = jnp.arctan2(B, A), jnp.arccos(jnp.clip(-C / R, -1.0, 1.0))
+    turns = jnp.stack([phi + half, phi - half], -1)
+    turns = jnp.arctan2(jnp.sin(turns), jnp.cos(turns))
+    fold = jnp.take_along_axis(turns, jnp.argmin(jnp.abs(turns), -1)[:, None], -1)[:, 0]
     target = jnp.clip(q_pred[joints] + 2 * fold, model.q_lower[joints], model.q_upper[joints])
     order = jnp.argsort(jnp.where(ok, jnp.abs(fold), jnp.inf))[np.arange(n) % len(joints)]
     value = jnp.where(ok[order], target[order], q_pred[jnp.asarray(joints)[order]])
@@ -237,7 +276,7 @@ def check_proposals(model: Model, proposals, frame: int) -> np.ndarray:
 def extra_starts(model: Model, hyp: HypothesisConfig, q_pred: np.ndarray, q_solved: np.ndarray | None,
                  carried: np.ndarray | None, proposals: np.ndarray | None, q_good: np.ndarray | None, frame: int
                  ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
-    """The host's extra starts of a frame, their validity and labels: the last solve, the carried
+    """The host's extra starts of a frame, their validity and labels: the last solve, the rest pose, the carried
     runners-up (padded to ``hyp.carry`` slots with the prediction, not valid, so the program's
     shape does not change), the proposals and the recovery starts around ``q_good`` (None: the
     frame before was not lost)."""
@@ -251,6 +290,10 @@ def extra_starts(model: Model, hyp: HypothesisConfig, q_pred: np.ndarray, q_solv
 
     if hyp.last_solve:
         add(q_pred if q_solved is None else q_solved, "last_solve", q_solved is not None)
+    if hyp.rest:   # the model's default joint angles, the base where the prediction has it
+        rest = np.asarray(model.q_default, float).copy()
+        rest[:model.n_base_q] = q_pred[:model.n_base_q]
+        add(rest, "rest")
     if hyp.carry:
         have = np.zeros((0, model.n_q)) if carried is None else carried[:hyp.carry]
         add(have, "carried")
