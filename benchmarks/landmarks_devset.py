@@ -73,7 +73,8 @@ def fit_run(seq, px: np.ndarray, cams: list[int], frames: int, config: SequenceC
             "median_px": float(np.median(dist)), "p95_px": float(np.percentile(dist, 95)),
             "frames_per_s": frames / seconds, "seconds": seconds, "timings_s": fit.timings_s,
             "iterations": int(fit.result.iterations), "converged": bool(fit.result.converged),
-            "worst_joints_deg": {str(names[i]): float(per_joint[i]) for i in worst}}
+            "worst_joints_deg": {str(names[i]): float(per_joint[i]) for i in worst},
+            "dip_pip_ratio": [float(x) for x in np.asarray(fit.result.dip_pip_ratio)]}
 
 
 def main() -> None:
@@ -84,11 +85,17 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--smooth", type=float, default=30.0, help="SequenceConfig.smooth_px_per_rad")
     ap.add_argument("--accel", type=float, default=0.0, help="SequenceConfig.accel_px_per_rad")
+    ap.add_argument("--dip-pip", type=float, default=11.5, help="SequenceConfig.dip_pip_px_per_rad")
+    ap.add_argument("--dip-pip-ratio", type=float, default=2.0 / 3.0, help="SequenceConfig.dip_pip_ratio")
+    ap.add_argument("--dip-pip-prior", type=float, default=20.0,
+                    help="SequenceConfig.dip_pip_ratio_prior_px (> 0: the ratio is estimated)")
     ap.add_argument("--steps", type=int, default=300, help="SequenceConfig.max_steps")
     ap.add_argument("--init", default="auto", help="fit_landmark_sequence's init")
     ap.add_argument("--json", default="landmarks_devset.json", help="file in benchmarks/results/ ('' : none)")
     args = ap.parse_args()
-    config = SequenceConfig(smooth_px_per_rad=args.smooth, accel_px_per_rad=args.accel, max_steps=args.steps)
+    config = SequenceConfig(smooth_px_per_rad=args.smooth, accel_px_per_rad=args.accel, max_steps=args.steps,
+                            dip_pip_px_per_rad=args.dip_pip, dip_pip_ratio=args.dip_pip_ratio,
+                            dip_pip_ratio_prior_px=args.dip_pip_prior)
     load0 = load_average()
     runs = []
     for name in (args.only.split(",") if args.only else SEQUENCES):
@@ -108,7 +115,8 @@ def main() -> None:
     if args.json:
         write_json({"noise_px": args.noise_px, "seed": args.seed, "tips": "cap_centre", "init": args.init,
                     "config": {"smooth_px_per_rad": args.smooth, "accel_px_per_rad": args.accel,
-                               "max_steps": args.steps},
+                               "max_steps": args.steps, "dip_pip_px_per_rad": args.dip_pip,
+                               "dip_pip_ratio": args.dip_pip_ratio, "dip_pip_ratio_prior_px": args.dip_pip_prior},
                     "frames_per_s_note": "first call per run, compilation included",
                     "runs": runs, "environment": environment(),
                     "load_average": {"start": load0, "end": load_average()}}, RESULTS / args.json)

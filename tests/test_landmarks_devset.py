@@ -35,34 +35,42 @@ def test_cap_centre_tips_put_all_21_points_on_the_truth():
     assert np.all((d[tips] > 7.0) & (d[tips] < 9.6)) and np.all(np.delete(d, tips) < 1e-9)
 
 
+# benchmarks/landmarks_devset.py's settings: the DIP-PIP term at 2 px (the noise) per 10 deg,
+# each finger's ratio estimated with a prior of 20 px per unit towards 2/3
+CONFIG = SequenceConfig(smooth_px_per_rad=30.0, max_steps=300, dip_pip_px_per_rad=11.5, dip_pip_ratio_prior_px=20.0)
+
+
 def _fit(name, cams, frames, seed):
     seq = load_devset(DEVSET / name)
     rng = np.random.default_rng(seed)
     px = seq.truth.points_px[cams, :frames] + rng.normal(0.0, 2.0, seq.truth.points_px[cams, :frames].shape)
     m = seq.model
     fit = fit_landmark_sequence(m, tuple(seq.cameras[c] for c in cams), make_landmarks(np.moveaxis(px, 0, 1)),
-                                shape=None, lmap=landmark_map(m, tips="cap_centre"),
-                                config=SequenceConfig(smooth_px_per_rad=30.0, max_steps=300))
+                                shape=None, lmap=landmark_map(m, tips="cap_centre"), config=CONFIG)
     q_true = seq.truth.q[:frames]
     moving = (np.ptp(q_true, axis=0) > 1e-6) & np.asarray(m.is_angle)
-    return np.degrees(np.abs(fit.q - q_true))[:, moving]
+    return np.degrees(np.abs(fit.q - q_true))[:, moving], fit, seq
 
 
 @pytest.mark.slow
-def test_one_camera_sequence_fit_within_4_deg():
-    # The issue's bound (<= 4 deg mean over the moving joints, one camera) on the first 40
-    # frames of index_over_middle, a sequence that meets it (2.00 deg over all 90 frames). Not
-    # every sequence does: open_close, thumb_opposition, fast_spread and the clutter copy miss it
-    # (5.0-7.2 deg, the thumb's mirror branches; benchmarks/README.md, 2026-12-02).
-    err = _fit("index_over_middle", [0], 40, seed=1)
-    assert err.mean() <= 4.0
+@pytest.mark.parametrize(("name", "frames", "bound"), [("index_over_middle", 40, 4.0), ("fast_spread", 45, 4.5)])
+def test_one_camera_sequence_fit(name, frames, bound):
+    # The issue's bound is <= 4 deg mean over the moving joints with one camera. index_over_middle's
+    # first 40 frames meet it. fast_spread meets it with the benchmark's noise draw (3.86 deg;
+    # 5.03 before the DIP-PIP term and the paths' Gauss-Newton step cost, benchmarks/README.md,
+    # 2026-12-02, second pass) but MISSES it with this test's draw (seed 1: 4.37 deg), so the
+    # bound here guards what is reached: the branch choice still depends on the noise.
+    err, _, _ = _fit(name, [0], frames, seed=1)
+    assert err.mean() <= bound
 
 
 @pytest.mark.slow
-def test_two_camera_sequence_fit_within_2_deg():
-    # The issue asks <= 1.5 deg with both cameras; the fit MISSES it: 1.70 deg on these 40 frames
-    # of wave_two_cameras, 1.66 on all 90 (benchmarks/README.md, 2026-12-02; started from the
-    # truth the same solve gives 1.55-1.63, so the start is not the cause: the smoothness term's
-    # bias and the 2 px noise on 15-20 px distal links are). 2.0 guards what is reached.
-    err = _fit("wave_two_cameras", [0, 1], 40, seed=1)
-    assert err.mean() <= 2.0
+def test_two_camera_sequence_fit_within_1_5_deg_and_the_hands_dip_pip_ratio():
+    # The issue's bound (<= 1.5 deg mean over the moving joints with both cameras of
+    # wave_two_cameras), on its first 40 frames; each finger's DIP-PIP ratio, estimated from the
+    # sequence, lands within 0.1 of this hand's (0.50-0.54 while the fingers flex; measured
+    # 0.45-0.61 on these frames) rather than at the prior's 2/3 for all.
+    err, fit, _ = _fit("wave_two_cameras", [0, 1], 40, seed=1)
+    assert err.mean() <= 1.5
+    ratio = np.asarray(fit.result.dip_pip_ratio)
+    assert ratio.shape == (4,) and np.all(np.abs(ratio - 0.53) < 0.1) and np.mean(ratio) < 0.6

@@ -6,8 +6,9 @@ tracker."""
 from ._convention import BUILTIN_HANDEDNESS, POINT_NAMES, TIP_CONVENTIONS, LandmarkMap, landmark_map, landmark_positions
 from ._fit import LANDMARK_SOLVERS, BatchConfig, fit_landmarks, fit_landmarks_batch
 from ._io import LandmarkFileError, LandmarkSequence, load_landmarks, mirror_x, save_landmarks_csv
-from ._paths import START_FRACTIONS, independent_blocks, joint_starts, smoothest_paths
+from ._paths import START_FRACTIONS, block_costs, independent_blocks, joint_starts, smoothest_paths
 from ._pipeline import (
+    PATH_SCALES,
     SEQUENCE_INITS,
     SequenceFit,
     calibrate_landmarks,
@@ -44,4 +45,4 @@ __all__ = ["POINT_NAMES", "BUILTIN_HANDEDNESS", "TIP_CONVENTIONS", "LandmarkMap"
            "save_calibrated_model", "projected_landmarks", "camera_from_fov", "LandmarkPoses", "fit_landmark_poses",
            "LANDMARK_FITS", "MIN_POINTS", "ON_FINGERS_PX", "landmark_agreement", "LandmarkTerm", "LandmarkPrior",
            "landmark_term", "SEQUENCE_INITS", "START_FRACTIONS", "independent_blocks", "joint_starts",
-           "smoothest_paths"]
+           "smoothest_paths", "block_costs", "PATH_SCALES"]

@@ -15,9 +15,10 @@ from .._errors import InputError
 from ..camera import as_rig
 from ..kinematics import validate_q
 from ..model import Model
+from ..priors import DipPipCoupling
 from ..solve import FitConfig, FitResult, StateSpace, solve_least_squares
 from ..solve.bounded_trust_region import make_bounded_trust_region
-from ..solve.internal import BatchConfig, batch_lm, check_batch_config, solve_batched
+from ..solve.internal import BatchConfig, SparsePattern, batch_lm, check_batch_config, solve_batched
 from ..solve.levenberg_marquardt import make_levenberg_marquardt
 from ._convention import LandmarkMap
 from ._residuals import (
@@ -45,13 +46,33 @@ class _LaneResiduals(eqx.Module):
     cameras: tuple
     lmap: LandmarkMap
     use_3d: bool = eqx.field(static=True)
+    coupling: DipPipCoupling | None = None
 
     def __call__(self, q, landmarks):
         args = LandmarkArgs(model=self.model, cameras=self.cameras, lmap=self.lmap, landmarks=landmarks)
-        return lane_residuals_and_jacobian(q, args, use_3d=self.use_3d)
+        r, J = lane_residuals_and_jacobian(q, args, use_3d=self.use_3d)
+        if self.coupling is None:
+            return r, J
+        # one row per finger, w (q_dip - rho q_pip): its two nonzeros in column order
+        c = self.coupling
+        pip, dip = np.array(c.pip_index), np.array(c.dip_index)
+        rc = c.weight[:, None] * (q[dip] - c.ratio[:, None] * q[pip])
+        d_pip = jnp.broadcast_to((-c.weight * c.ratio)[:, None], rc.shape)
+        d_dip = jnp.broadcast_to(c.weight[:, None], rc.shape)
+        first = (pip < dip)[:, None]
+        Jc = jnp.stack([jnp.where(first, d_pip, d_dip), jnp.where(first, d_dip, d_pip)], axis=1)
+        Jc = Jc.reshape(-1, q.shape[-1]).astype(J.dtype)
+        return jnp.concatenate([r, rc.astype(r.dtype)]), jnp.concatenate([J, Jc])
 
     def pattern(self):
-        return lane_jacobian_pattern(self.model, self.lmap, len(self.cameras), use_3d=self.use_3d)
+        base = lane_jacobian_pattern(self.model, self.lmap, len(self.cameras), use_3d=self.use_3d)
+        if self.coupling is None:
+            return base
+        jac = np.zeros((base.m + len(self.coupling.fingers), base.n), bool)
+        jac[base.rows, base.cols] = True
+        jac[base.m + np.arange(len(self.coupling.fingers)), self.coupling.pip_index] = True
+        jac[base.m + np.arange(len(self.coupling.fingers)), self.coupling.dip_index] = True
+        return SparsePattern(jac)
 
 
 def _as_float_landmarks(landmarks: Landmarks) -> Landmarks:
@@ -60,7 +81,8 @@ def _as_float_landmarks(landmarks: Landmarks) -> Landmarks:
 
 
 def fit_landmarks_batch(model: Model, cameras, landmarks: Landmarks, q0, *,
-                        config: BatchConfig | None = None, lmap: LandmarkMap | None = None) -> FitResult:
+                        config: BatchConfig | None = None, lmap: LandmarkMap | None = None,
+                        coupling: DipPipCoupling | None = None) -> FitResult:
     """Fit B frames of landmarks at once (one compiled program per model structure, rig and
     chunk size): the batch solver of this module, vmapped over problems.
 
@@ -69,6 +91,8 @@ def fit_landmarks_batch(model: Model, cameras, landmarks: Landmarks, q0, *,
         q0: (B, n_q) starts, or (n_q,) for the same start everywhere.
         config: a :class:`BatchConfig`.
         lmap: where the landmarks sit on the model (default ``landmark_map(model)``: skin tips).
+        coupling: optional :class:`~jaxhand.priors.DipPipCoupling` whose residuals (in px: its
+            weight in px per rad) join every problem's landmark residuals.
 
     Returns:
         A :class:`~jaxhand.FitResult` with leading axis B (no history).
@@ -88,7 +112,7 @@ def fit_landmarks_batch(model: Model, cameras, landmarks: Landmarks, q0, *,
     if q.shape != (B, model.n_q) or not np.all(np.isfinite(q)):
         raise InputError(f"q0: expected finite values of shape ({B}, {model.n_q}) or ({model.n_q},), got {q.shape}")
     use_3d = bool(np.any(np.asarray(landmarks.mm_valid) & (np.asarray(landmarks.mm_weight) > 0)))
-    fn = _LaneResiduals(model=model, cameras=rig, lmap=args.lmap, use_3d=use_3d)
+    fn = _LaneResiduals(model=model, cameras=rig, lmap=args.lmap, use_3d=use_3d, coupling=coupling)
     return solve_batched(fn, _as_float_landmarks(landmarks), jnp.asarray(q), StateSpace.of(model), config,
                          fn.pattern())
 

@@ -12,10 +12,14 @@ Steps of :func:`fit_landmark_sequence`:
    landmarks keeps the previous state);
 2b. (``init="paths"``, the default for a model whose palm does not move) every frame also from
    fixed joint starts, and per independent block of joints (each finger, with the palm fixed)
-   the smoothest low-cost path through the candidates (:func:`~jaxhand.landmarks.smoothest_paths`):
-   one camera's mirror branches are chosen from the whole sequence, not from frame 0;
-3. :func:`~jaxhand.landmarks.fit_sequence` over all frames, with the temporal smoothness term and
-   (with ``shape``) one hand shape shared by every frame.
+   the smoothest low-cost path through the candidates (:func:`~jaxhand.landmarks.smoothest_paths`),
+   one per smoothness scale of ``path_scales``: one camera's mirror branches are chosen from the
+   whole sequence, not from frame 0;
+3. :func:`~jaxhand.landmarks.fit_sequence` over all frames from each path, with the temporal
+   smoothness term and (with ``shape``) one hand shape shared by every frame. With several
+   paths, each block keeps the solve of least cost (:func:`~jaxhand.landmarks.block_costs`) and
+   one more solve starts from these blocks together (with a shape, which couples the blocks,
+   the solve of least total cost is kept).
 """
 
 from __future__ import annotations
@@ -35,12 +39,12 @@ from ..model import Model, model_from_dict, model_to_dict, save_model
 from ..solve import StateSpace
 from ._convention import POINT_NAMES, LandmarkMap, landmark_map, landmark_positions
 from ._fit import BatchConfig, _as_float_landmarks, batch_lm, fit_landmarks_batch
-from ._paths import smoothest_paths
+from ._paths import block_costs, independent_blocks, smoothest_paths
 from ._residuals import LandmarkArgs, Landmarks, landmark_residuals_and_jacobian
 from ._sequence import SequenceConfig, SequenceResult, fit_sequence
 from ._shape import HandShape, apply_shape, hand_shape
 
-__all__ = ["SEQUENCE_INITS", "initial_starts", "track_landmarks", "fit_landmark_sequence", "SequenceFit",
+__all__ = ["SEQUENCE_INITS", "PATH_SCALES", "initial_starts", "track_landmarks", "fit_landmark_sequence", "SequenceFit",
            "calibrate_landmarks", "save_calibrated_model", "projected_landmarks", "camera_from_fov"]
 
 
@@ -48,6 +52,12 @@ __all__ = ["SEQUENCE_INITS", "initial_starts", "track_landmarks", "fit_landmark_
 #: frame), ``"paths"`` (also the smoothest paths through fixed starts), ``"auto"`` (``"paths"``
 #: unless the model's base is free: that case is measured only with ``"track"``).
 SEQUENCE_INITS = ("auto", "track", "paths")
+
+#: Smoothness scales of the paths of ``init="paths"`` (:func:`~jaxhand.landmarks.smoothest_paths`):
+#: on the dev set's open_close copies the full weight left the ring finger in its mirror branch
+#: where a tenth of it found the right one, and the thumb the other way round
+#: (benchmarks/README.md, landmarks_devset.py, 2026-12-02).
+PATH_SCALES = (1.0, 0.1)
 
 
 def camera_from_fov(size, fov_deg: float = 60.0) -> Perspective:
@@ -193,7 +203,7 @@ class SequenceFit:
 def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape: HandShape | None | str = "auto",
                           config: SequenceConfig | None = None, batch_config: BatchConfig | None = None,
                           q0=None, sequence: bool = True, lmap: LandmarkMap | None = None,
-                          init: str = "auto") -> SequenceFit:
+                          init: str = "auto", path_scales=PATH_SCALES) -> SequenceFit:
     """Fit a whole landmark sequence (see the module docstring).
 
     Args:
@@ -206,6 +216,7 @@ def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape:
         lmap: where the landmarks sit on the model (default ``landmark_map(model)``: skin tips;
             ``landmark_map(model, tips="cap_centre")`` for data whose tips are cap centres).
         init: one of :data:`SEQUENCE_INITS` (step 2b).
+        path_scales: the smoothness scales of step 2b's paths (each a sequence solve).
 
     Raises:
         InputError: shapes, an unknown ``shape`` or ``init``, no frame with landmarks.
@@ -245,14 +256,32 @@ def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape:
     times["frame_by_frame_s"] = time.perf_counter() - t
     if init == "paths":
         t = time.perf_counter()
-        q_init = smoothest_paths(model, rig, landmarks, lmap, candidates=q_init[None], config=config,
-                                 batch_config=batch_config)
+        paths = smoothest_paths(model, rig, landmarks, lmap, candidates=q_init[None], config=config,
+                                batch_config=batch_config, scales=tuple(path_scales))
         times["paths_s"] = time.perf_counter() - t
+    else:
+        paths = q_init[None]
+    q_init = paths[0]
     if not sequence:
         return SequenceFit(q=q_init, q_init=q_init, model=model, theta=np.zeros(0), shape=None, result=None,
                            start_costs=costs, best_start=best, timings_s=times)
     t = time.perf_counter()
-    res = fit_sequence(model, rig, landmarks, q_init, shape=shape, config=config, lmap=lmap)
+    fits = [fit_sequence(model, rig, landmarks, p, shape=shape, config=config, lmap=lmap) for p in paths]
+    res = min(fits, key=lambda r: float(r.cost))
+    if len(fits) > 1 and shape is None:
+        costs = np.stack([block_costs(model, rig, landmarks, lmap, config, np.asarray(r.q), np.asarray(r.dip_pip_ratio))
+                          for r in fits])                                       # (paths, blocks)
+        pick = np.argmin(costs, axis=0)
+        if np.any(pick != pick[0]):
+            q_init = np.array(paths[0])
+            q_best = np.array(fits[0].q)
+            for block, k in zip(independent_blocks(model, lmap), pick):
+                q_init[:, block] = paths[k][:, block]
+                q_best[:, block] = np.asarray(fits[k].q)[:, block]
+            res = fit_sequence(model, rig, landmarks, q_best, shape=None, config=config, lmap=lmap)
+        else:
+            q_init = paths[pick[0]]
+            res = fits[pick[0]]
     jax.block_until_ready(res)
     times["sequence_s"] = time.perf_counter() - t
     theta = np.asarray(res.theta)

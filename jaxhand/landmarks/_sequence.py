@@ -11,6 +11,13 @@ Unknowns: ``Q`` (frames, n_q), one state per frame, and ``theta`` (p,), the shap
 - per triple of consecutive frames, ``a * (Q_{t+1} - 2 Q_t + Q_{t-1})`` with ``a`` =
   ``accel_px_per_rad`` / ``accel_px_per_mm`` (off by default): a penalty on acceleration, which
   unlike the first difference does not pull a steady motion towards standing still;
+- per frame and finger, the DIP-PIP coupling ``c (q_dip - rho q_pip)`` of
+  :func:`jaxhand.priors.dip_pip_coupling` with ``c`` = ``dip_pip_px_per_rad`` (off by default): a
+  finger's distal joint follows its middle one, which leaves one camera fewer mirror branches and
+  the short distal link's noise less room; with ``dip_pip_ratio_prior_px`` > 0 each finger's
+  ratio ``rho`` is an unknown shared by every frame (appended to ``theta``), pulled towards
+  ``dip_pip_ratio`` by ``dip_pip_ratio_prior_px (rho - dip_pip_ratio)``: the hand's own coupling
+  is measured from the sequence rather than assumed;
 - a prior ``w_s (s - 1)`` on each scale and ``w_o o`` on each palm offset (mm), which keeps
   directions no landmark sees (and one camera's scale-depth ambiguity) determined.
 
@@ -36,12 +43,13 @@ from jaxtyping import Array, Float
 from .._errors import InputError
 from ..camera import as_rig
 from ..model import Model
+from ..priors import DIP_PIP_RATIO, DipPipCoupling, dip_pip_coupling
 from ..solve import StateSpace
 from ._convention import LandmarkMap, landmark_map
 from ._residuals import LandmarkArgs, Landmarks, landmark_residuals
 from ._shape import HandShape, apply_shape
 
-__all__ = ["SequenceConfig", "SequenceResult", "fit_sequence"]
+__all__ = ["SequenceConfig", "SequenceResult", "fit_sequence", "sequence_coupling"]
 
 
 def _f(x):
@@ -64,6 +72,13 @@ class SequenceConfig(eqx.Module):
             real video's fit drove phalanges to the 0.5 and 1.7 bounds); calibration with 3-D
             points uses 1 (:func:`~jaxhand.landmarks.calibrate_landmarks`).
         offset_prior_px_per_mm: traced. Weight of a palm offset (px per mm); calibration uses 0.1.
+        dip_pip_px_per_rad: traced. Weight of every finger's ``q_dip - dip_pip_ratio * q_pip`` per
+            frame (px per rad); 0: off.
+        dip_pip_ratio: traced. DIP flexion over PIP flexion in that term (with the next field: the
+            ratios' start and prior).
+        dip_pip_ratio_prior_px: traced. > 0: every finger's ratio is estimated, with this weight
+            (px per unit of ratio) on its distance to ``dip_pip_ratio``; 0: the ratio is fixed.
+            Static in effect: whether it is 0 decides the unknowns (read on the host).
         scale_bounds: traced (2,). Scales are clipped into [lo, hi].
         offset_bound_mm: traced. Palm offsets are clipped into [-bound, bound] mm.
         ftol: traced, relative. Stop when an accepted step lowers the cost by <= ftol * cost.
@@ -77,6 +92,9 @@ class SequenceConfig(eqx.Module):
     accel_px_per_mm: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
     scale_prior_px: Float[Array, ""] = eqx.field(converter=_f, default=20.0)
     offset_prior_px_per_mm: Float[Array, ""] = eqx.field(converter=_f, default=1.0)
+    dip_pip_px_per_rad: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
+    dip_pip_ratio: Float[Array, ""] = eqx.field(converter=_f, default=DIP_PIP_RATIO)
+    dip_pip_ratio_prior_px: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
     scale_bounds: Float[Array, " 2"] = eqx.field(converter=_f, default=(0.5, 2.0))
     offset_bound_mm: Float[Array, ""] = eqx.field(converter=_f, default=30.0)
     ftol: Float[Array, ""] = eqx.field(converter=_f, default=1e-9)
@@ -89,13 +107,15 @@ class SequenceResult(eqx.Module):
     Attributes:
         q: (frames, n_q) states.
         theta: (p,) the shape (empty without one).
+        dip_pip_ratio: (fingers,) the DIP-PIP ratios used (estimated or as configured).
         cost: final total cost (px^2), ``start_cost`` the first.
-        data_cost: (frames,) landmark cost per frame at the result (px^2).
+        data_cost: (frames,) landmark and DIP-PIP cost per frame at the result (px^2).
         iterations: trials taken; converged: the cost rule fired.
     """
 
     q: Float[Array, "frames nq"]
     theta: Float[Array, " p"]
+    dip_pip_ratio: Float[Array, " fingers"]
     cost: Float[Array, ""]
     start_cost: Float[Array, ""]
     data_cost: Float[Array, " frames"]
@@ -197,6 +217,14 @@ class _Problem(eqx.Module):
     shape: HandShape | None
     landmarks: Landmarks          # leading frame axis
     theta0: Array
+    coupling: DipPipCoupling      # weights in px per rad
+    n_ratios: int = eqx.field(static=True)     # estimated ratios at the end of theta (0: none)
+
+
+def sequence_coupling(model: Model, config: SequenceConfig) -> DipPipCoupling:
+    """The DIP-PIP term of ``config`` on ``model`` (residuals in px; no finger: none)."""
+    c = dip_pip_coupling(model, weight=1.0, ratio=float(config.dip_pip_ratio))
+    return eqx.tree_at(lambda t: t.weight, c, c.weight * config.dip_pip_px_per_rad)
 
 
 def _unit_weights(model: Model, config: SequenceConfig, dtype):
@@ -209,16 +237,23 @@ def _accel_weights(model: Model, config: SequenceConfig, dtype):
     return jnp.where(is_len, config.accel_px_per_mm, config.accel_px_per_rad).astype(dtype)
 
 
-def _prior_weights(shape: HandShape | None, config: SequenceConfig, dtype):
-    if shape is None:
-        return jnp.zeros((0,), dtype)
-    return jnp.concatenate([jnp.full((shape.n_scales,), config.scale_prior_px, dtype),
-                            jnp.full((len(shape.palm),), config.offset_prior_px_per_mm, dtype)])
+def _prior_weights(prob: _Problem, config: SequenceConfig, dtype):
+    ratios = jnp.full((prob.n_ratios,), config.dip_pip_ratio_prior_px, dtype)
+    if prob.shape is None:
+        return ratios
+    return jnp.concatenate([jnp.full((prob.shape.n_scales,), config.scale_prior_px, dtype),
+                            jnp.full((len(prob.shape.palm),), config.offset_prior_px_per_mm, dtype), ratios])
+
+
+def _ratios(prob: _Problem, theta):
+    return theta[theta.shape[0] - prob.n_ratios:] if prob.n_ratios else prob.coupling.ratio
 
 
 def _frame_residuals(prob: _Problem, q, theta, lm):
     model = prob.model if prob.shape is None else apply_shape(prob.model, prob.shape, theta)
-    return landmark_residuals(q, LandmarkArgs(model=model, cameras=prob.cameras, lmap=prob.lmap, landmarks=lm))
+    r = landmark_residuals(q, LandmarkArgs(model=model, cameras=prob.cameras, lmap=prob.lmap, landmarks=lm))
+    coupling = eqx.tree_at(lambda c: c.ratio, prob.coupling, _ratios(prob, theta))
+    return jnp.concatenate([r, coupling(q)])
 
 
 def _total_cost(prob, config, Q, theta):
@@ -226,7 +261,7 @@ def _total_cost(prob, config, Q, theta):
     w = _unit_weights(prob.model, config, Q.dtype)
     smooth = w * (Q[1:] - Q[:-1])
     accel = _accel_weights(prob.model, config, Q.dtype) * (Q[2:] - 2 * Q[1:-1] + Q[:-2])
-    prior = _prior_weights(prob.shape, config, Q.dtype) * (theta - prob.theta0)
+    prior = _prior_weights(prob, config, Q.dtype) * (theta - prob.theta0)
     data = 0.5 * jnp.sum(r * r, axis=-1)
     return (jnp.sum(data) + 0.5 * jnp.sum(smooth * smooth) + 0.5 * jnp.sum(accel * accel)
             + 0.5 * jnp.sum(prior * prior)), data
@@ -238,8 +273,11 @@ def _project(prob: _Problem, config: SequenceConfig, Q, theta):
     Q = jax.vmap(lambda q: space.normalize(space.clip(q)))(Q)
     if prob.shape is not None:
         n = prob.shape.n_scales
+        k = prob.shape.size
         theta = jnp.concatenate([jnp.clip(theta[:n], config.scale_bounds[0], config.scale_bounds[1]),
-                                 jnp.clip(theta[n:], -config.offset_bound_mm, config.offset_bound_mm)])
+                                 jnp.clip(theta[n:k], -config.offset_bound_mm, config.offset_bound_mm), theta[k:]])
+    if prob.n_ratios:          # a ratio stays within [0, 1.5]: a distal joint flexing with the middle one
+        theta = jnp.concatenate([theta[:-prob.n_ratios], jnp.clip(theta[-prob.n_ratios:], 0.0, 1.5)])
     return Q, theta
 
 
@@ -249,7 +287,7 @@ def _solve(prob: _Problem, Q0, config: SequenceConfig):
     p = prob.theta0.shape[0]
     dtype = Q0.dtype
     w = _unit_weights(prob.model, config, dtype)
-    wp = _prior_weights(prob.shape, config, dtype)
+    wp = _prior_weights(prob, config, dtype)
     e = w * w
     wa = _accel_weights(prob.model, config, dtype)
     a = wa * wa
@@ -331,7 +369,8 @@ def _solve(prob: _Problem, Q0, config: SequenceConfig):
     init = (jnp.array(0), Q, theta, H0, linearise(Q, theta), jnp.asarray(config.lambda0, dtype), jnp.array(True))
     k, Q, theta, H, _, _, running = jax.lax.while_loop(cond, body, init)
     _, data = _total_cost(prob, config, Q, theta)
-    return SequenceResult(q=Q, theta=theta, cost=H, start_cost=H0, data_cost=data, iterations=k,
+    return SequenceResult(q=Q, theta=theta[:theta.shape[0] - prob.n_ratios], dip_pip_ratio=_ratios(prob, theta),
+                          cost=H, start_cost=H0, data_cost=data, iterations=k,
                           converged=~running)
 
 
@@ -371,5 +410,9 @@ def fit_sequence(model: Model, cameras, landmarks: Landmarks, q_init, *, shape: 
     dtype = jnp.asarray(0.0).dtype
     lm = jax.tree_util.tree_map(lambda x: jnp.asarray(x, dtype=bool if x.dtype == bool else dtype), landmarks)
     lmap = landmark_map(model) if lmap is None else lmap
-    prob = _Problem(model=model, cameras=rig, lmap=lmap, shape=shape, landmarks=lm, theta0=jnp.asarray(th))
+    coupling = sequence_coupling(model, config)
+    n_ratios = len(coupling.fingers) if float(config.dip_pip_ratio_prior_px) > 0 else 0
+    th = np.concatenate([th, np.full(n_ratios, float(config.dip_pip_ratio))])
+    prob = _Problem(model=model, cameras=rig, lmap=lmap, shape=shape, landmarks=lm, theta0=jnp.asarray(th),
+                    coupling=coupling, n_ratios=n_ratios)
     return _solve(prob, jnp.asarray(Q0), config)
