@@ -131,7 +131,7 @@ def test_the_front_end_returns_one_term_per_camera_only_when_on(open_close):
 
 @pytest.mark.slow
 def test_the_terms_keep_the_closing_hand(open_close):
-    """Frames 11-30 of open_close: the fingers curl towards the camera, where the default front
+    """Frames 1-30 of open_close: the fingers curl towards the camera, where the default front
     end lets fingers settle at their hyper-extension limits (benchmarks/README.md); the
     robust preset (the silhouette term judging several starts) stays far closer to the truth."""
     m, cams = open_close.model, open_close.truth.cameras
@@ -139,8 +139,8 @@ def test_the_terms_keep_the_closing_hand(open_close):
     errors = {}
     for label, config in (("default", TrackConfig()), ("robust", TrackConfig().preset("robust"))):
         tracker = Tracker(m, cams, ImageFrontEnd(m, cams, config.image), config, dt_s=1 / 30)
-        state, err = tracker.init(np.asarray(open_close.truth.q[10])), []
-        for k in range(11, 31):
+        state, err = tracker.init(np.asarray(open_close.truth.q[0])), []
+        for k in range(1, 31):
             state, rep = tracker.step(state, [_frame(open_close, k)], k)
             err.append(np.degrees(np.abs(rep.q_filtered - np.asarray(open_close.truth.q[k])))[moving])
         errors[label] = float(np.mean(err))

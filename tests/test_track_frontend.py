@@ -49,8 +49,9 @@ def test_tracking_reproduces_the_golden_runs():
     for name, (frontend, config) in runs.items():
         # Since the front end no longer clips pills inside the image by the image frame, the
         # visible shares (and line weights) move by rounding (< 1e-12 relative,
-        # test_image_reference.py): the tracked q moves by < 1e-8 rad over 8 frames.
-        np.testing.assert_allclose(_track(seq, images, frontend, config), golden[name], rtol=0, atol=1e-8,
+        # test_image_reference.py): the tracked q moves by < 1e-8 rad over 8 frames on one
+        # machine and by 1.3e-8 on another (the same commit, c9a731d): rounding, not a change.
+        np.testing.assert_allclose(_track(seq, images, frontend, config), golden[name], rtol=0, atol=1e-7,
                                    err_msg=name)
     hand = make_preset("two_camera_hand", frames=100)
     oracle = ExactFrontEnd(hand.model, hand.cameras, hand.q, noise_px=0.5, seed=3)
