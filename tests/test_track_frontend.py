@@ -56,7 +56,8 @@ def test_tracking_reproduces_the_golden_runs():
     hand = make_preset("two_camera_hand", frames=100)
     oracle = ExactFrontEnd(hand.model, hand.cameras, hand.q, noise_px=0.5, seed=3)
     q = _track(hand, [[None, None]] * 8, oracle, TrackConfig())
-    np.testing.assert_array_equal(q, golden["exact_two_camera"])
+    # bit for bit on the machine that recorded it; 4e-9 apart on another (same commit, c9a731d)
+    np.testing.assert_allclose(q, golden["exact_two_camera"], rtol=0, atol=1e-7)
     # golden sums, to read at a glance
     assert float(np.abs(golden["image_wssd"]).sum()) == pytest.approx(16.922339819390864, abs=1e-12)
     assert float(np.abs(golden["exact_two_camera"]).sum()) == pytest.approx(59.9503849492388, abs=1e-12)
