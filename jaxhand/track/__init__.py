@@ -14,7 +14,6 @@
 
 from ._compiled import reweight
 from ._config import (
-    PRESETS,
     TRACK_CONFIG_VERSION,
     FilterConfig,
     HypothesisConfig,
@@ -28,6 +27,7 @@ from ._config import (
 )
 from ._config_toml import config_to_toml, load_track_config, save_track_config
 from ._frontend import AbstractFrontEnd, ExactFrontEnd, FrontEndDiagnostics, FrontEndResult, ImageFrontEnd
+from ._presets import PRESETS
 from ._score import confidence_of, frame_score, judge_frame
 from ._sequence import accuracy_summary, frame_tip_error_px, loss_flag_quality, track_sequence
 from ._tracker import StepReport, Tracker, TrackState

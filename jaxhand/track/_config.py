@@ -1,13 +1,12 @@
 """TrackConfig: every setting of a tracking run in one nested, frozen, documented tree.
 
-One tree per run, no field declared at two levels: the solver's iteration cap and Jacobian live
-in :attr:`TrackConfig.fit` (a :class:`~jaxhand.FitConfig`), the image front end's settings in
-:attr:`TrackConfig.image`. Each field's docstring gives its unit and whether it is *static*
-(part of the compiled frame program: a new value compiles a new one) or *traced* (passed as an
-array: a new value reuses it); *host* fields never enter compiled code. Values are checked once,
-when the tree is built. :func:`config_to_dict` / :func:`config_from_dict` (and the TOML files of
-:mod:`jaxhand.track._config_toml`) reproduce a tree exactly; unknown keys are errors with a
-"did you mean" hint.
+One tree per run, no field declared at two levels (the solver's cap and Jacobian live in
+:attr:`TrackConfig.fit`, the front end's settings in :attr:`TrackConfig.image`). Each field's
+docstring gives its unit and whether it is *static* (part of the compiled frame program: a new
+value compiles a new one) or *traced* (a new value reuses it); *host* fields never enter it.
+Values are checked once, when the tree is built. :func:`config_to_dict` / :func:`config_from_dict`
+(and :mod:`jaxhand.track._config_toml`'s TOML files) reproduce a tree exactly; unknown keys are
+errors with a "did you mean" hint.
 """
 
 from __future__ import annotations
@@ -23,9 +22,10 @@ from .._errors import InputError
 from ..image import ImageConfig
 from ..solve import FitConfig, solver_named
 from ..solve.internal import check_config
+from ._presets import PRESETS
 
 __all__ = ["TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig",
-           "LandmarkConfig", "config_to_dict", "config_from_dict", "TRACK_CONFIG_VERSION", "PRESETS"]
+           "LandmarkConfig", "config_to_dict", "config_from_dict", "TRACK_CONFIG_VERSION"]
 
 #: The ``format_version`` written into (and required of) saved tracking configs.
 TRACK_CONFIG_VERSION = 1
@@ -46,18 +46,14 @@ class FilterConfig:
         theta_rate_hz: host, Hz. The frame rate at which ``theta`` holds; the tracker uses
             ``theta ** (theta_rate_hz * dt_s)`` so the filter forgets the same share per second at
             any rate. 0 (or None): ``theta`` is the discount per frame at any rate.
-        report_solve: static. Report the solve (with :class:`PriorConfig`'s priors, the temporal
-            prior being the compromise between solve and prediction) as the estimate and predict
-            from it with the filter's velocity and acceleration; False: report the g-h-k update
-            (the thesis).
-        damp_unseen: static. Damp the velocity and acceleration of each joint angle by the share
-            of its image information the frame's features give (:func:`jaxhand.filter.seen_share`):
-            a hidden joint gets no innovation, so its last velocity would carry it on to a limit.
-            Off by default: a front end that misses visible links now and then lags with it
-            (benchmarks/README.md, 2026-12-02).
-        unseen_decay_s: traced, s. An unseen joint's velocity and acceleration decay with this
-            time constant (:func:`jaxhand.filter.damp_unseen`): long enough to carry a finger
-            across a brief occlusion, short enough that a long one holds it still.
+        report_solve: static. Report the solve (with :class:`PriorConfig`'s priors) and predict
+            from it with the filter's velocity and acceleration; False: the g-h-k update (thesis).
+        damp_unseen: static. Damp each joint angle's velocity and acceleration by the share of its
+            image information the frame's features give (:func:`jaxhand.filter.seen_share`), so a
+            hidden joint's last velocity does not carry it to a limit. Off: a front end that misses
+            visible links now and then lags with it (benchmarks/README.md, 2026-12-02).
+        unseen_decay_s: traced, s. The time constant of an unseen joint's velocity decay
+            (:func:`jaxhand.filter.damp_unseen`): a brief occlusion carries on, a long one holds.
     """
 
     enabled: bool = True
@@ -120,9 +116,8 @@ class LossConfig:
         rms_scale_px: traced, px. The residual RMS at which the confidence halves.
         min_valid_share: traced, in [0, 1]. Below this share of valid feature slots the frame is lost.
         max_rms_px: traced, px. Above this residual RMS the frame is lost.
-        min_term_merit: traced, in [0, 1]. The front end's measured terms (the silhouette term,
-            :attr:`jaxhand.image.ImageConfig.silhouette_term`) scale the confidence by their merit
-            at the solve; below this merit the frame is lost.
+        min_term_merit: traced, in [0, 1]. The measured terms (``image.silhouette_term``) scale
+            the confidence by their merit at the solve; below this merit the frame is lost.
         hold: static. On a lost frame report the last good estimate and predict it standing still.
         score_lost, score_good: host, in [0, 1]. The front end's image score (where it gives one:
             :attr:`jaxhand.image.ImageConfig.score`) of the estimate at which the frame is lost,
@@ -220,12 +215,9 @@ class HypothesisConfig:
             (smallest image-Jacobian column at the prediction) pushed by +/- ``flip_deg``, in
             pairs, worst joint first.
         flip_deg: traced, deg. How far a flip start pushes its joint.
-        folds: static. Starts from the prediction with one hinge reflected across its fold (where
-            its link lies across the first camera's viewing ray), the hinges nearest their fold
-            first: the depth ambiguity of one view (``fold_starts`` in :mod:`jaxhand.track._hypotheses`).
+        folds: static. Starts with one hinge reflected across its fold (the one-view depth ambiguity).
         last_solve: static. Also start from the last frame's solve.
-        rest: static. Also start from the model's default joint angles (with the predicted base):
-            a finger that a fast motion left folded the wrong way gets a start far from it.
+        rest: static. Also start from the model's default joint angles (the predicted base).
         carry: static. Runners-up carried to the next frame as extra starts (at most this many).
         carry_margin: host, in [0, 1]. A runner-up is carried when its merit is at least this
             share of the winner's (the score could not decide between them).
@@ -388,19 +380,6 @@ class TrackConfig:
         """
         _need(name in PRESETS, "preset", f"unknown preset {name!r}; valid: {', '.join(PRESETS)}")
         return self.merged(PRESETS[name])
-
-
-#: Named changes to the defaults. "thesis": the documents' tracker as it is (one start, the
-#: g-h-k filter reported, a lost frame held). "robust": for images jaxhand did not draw: the
-#: silhouette term in every solve and as the judge of six starts (the prediction, four flips of
-#: the least observed joints, the last solve) plus the rest pose, a weak DIP-PIP coupling, the
-#: solve reported (the filter only predicts) and no hold (benchmarks/README.md, dev-set tables).
-PRESETS: dict[str, dict] = {
-    "thesis": {},
-    "robust": {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False},
-               "filter": {"report_solve": True}, "prior": {"dip_pip_weight": 4.0},
-               "hypotheses": {"flips": 4, "flip_deg": 40.0, "last_solve": True, "rest": True}},
-}
 
 
 def _merge(base: dict, changes: dict) -> dict:
