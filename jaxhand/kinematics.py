@@ -19,7 +19,8 @@ from .model import Model
 
 __all__ = ["dh_transform", "dh_transforms", "quat_to_rotation", "base_pose", "frame_poses", "Pose", "View",
            "pose", "forward", "project_pose", "check_q_shape", "views", "link_points", "validate_q", "random_q",
-           "clip_q", "normalize_q", "clip_to_limits", "normalize_quaternion", "Pills", "occluder_pills", "all_pills"]
+           "clip_q", "normalize_q", "clip_to_limits", "normalize_quaternion", "Pills", "occluder_pills", "all_pills",
+           "pixel_scale"]
 
 
 def dh_transform(alpha, a, d, theta):
@@ -201,16 +202,21 @@ class View(eqx.Module):
     link_radius_px: Float[Array, " links"]
 
 
+def pixel_scale(camera: Camera, p_world: Float[ArrayLike, "*n 3"]) -> Float[Array, " *n"]:
+    """Pixels per mm at world points: the length of the image of a short segment across the
+    viewing ray there (the geometric mean of the projection's two scales; exact for orthographic
+    cameras)."""
+    J = camera.pixel_jacobian(p_world)
+    return jnp.abs(jnp.linalg.det(J @ jnp.swapaxes(J, -1, -2))) ** 0.25
+
+
 def _view(model: Model, camera: Camera, pose: Pose) -> View:
     jp, jd = camera.project(pose.frames[:, :3, 3])
     sp, sd = camera.project(pose.link_start)
     ep, ed = camera.project(pose.link_end)
     tp, td = camera.project(pose.tips)
-    # Radius in pixels at the link's mid depth: the length of the image of a radius-long
-    # segment perpendicular to the viewing ray (exact for orthographic cameras).
-    mid = 0.5 * (pose.link_start + pose.link_end)
-    J = camera.pixel_jacobian(mid)
-    radius_px = model.link_radius_mm * jnp.abs(jnp.linalg.det(J @ jnp.swapaxes(J, -1, -2))) ** 0.25
+    # Radius in pixels at the link's mid depth.
+    radius_px = model.link_radius_mm * pixel_scale(camera, 0.5 * (pose.link_start + pose.link_end))
     return View(joints_px=jp, joints_depth=jd, link_start_px=sp, link_end_px=ep, link_depth=jnp.stack([sd, ed], -1),
                 tips_px=tp, tips_depth=td, link_radius_px=radius_px)
 

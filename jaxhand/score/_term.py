@@ -37,7 +37,7 @@ from jax.scipy.ndimage import map_coordinates
 from jaxtyping import Array, ArrayLike, Bool, Float
 
 from .._errors import InputError
-from ..kinematics import all_pills, pose
+from ..kinematics import all_pills, pixel_scale, pose
 from ..model import Model
 from ..priors import AbstractTerm
 from ._foreground import AbstractForeground, as_grey
@@ -120,11 +120,8 @@ def _pill_geometry(model: Model, camera, q) -> tuple[Array, ...]:
     a, za = camera.project(pills.start)
     b, zb = camera.project(pills.end)
 
-    def scale(p):
-        J = camera.pixel_jacobian(p)
-        return jnp.abs(jnp.linalg.det(J @ jnp.swapaxes(J, -1, -2))) ** 0.25
-
-    return a, b, pills.radius_mm * scale(pills.start), pills.radius_mm * scale(pills.end), za, zb
+    return (a, b, pills.radius_mm * pixel_scale(camera, pills.start), pills.radius_mm * pixel_scale(camera, pills.end),
+            za, zb)
 
 
 def pill_images(model: Model, camera, q: Float[ArrayLike, " nq"]) -> tuple[Array, Array, Array, Array]:
@@ -140,13 +137,9 @@ def visible_outline(model: Model, geometry: tuple, fractions) -> tuple[Array, Ar
     derivative)."""
     a, b, ra, rb, za, zb = geometry
     n_links = model.n_links
-    al, bl, ral, rbl = a[:n_links], b[:n_links], ra[:n_links], rb[:n_links]
-    u = bl - al
-    u = u / jnp.sqrt(jnp.sum(u * u, -1) + 1e-9)[:, None]
-    normal = jnp.stack([-u[:, 1], u[:, 0]], -1)
+    bl, rbl = b[:n_links], rb[:n_links]
+    u, normal, centre, r = _sides(a[:n_links], bl, ra[:n_links], rbl, fractions)
     f = jnp.asarray(fractions, a.dtype)
-    centre = al[:, None] + f[None, :, None] * (bl - al)[:, None]
-    r = (ral[:, None] + f[None] * (rbl - ral)[:, None])[..., None]
     tips = np.array(model.tip_links, dtype=int)
     pts = jnp.concatenate([(centre + r * normal[:, None]).reshape(-1, 2), (centre - r * normal[:, None]).reshape(-1, 2),
                            bl[tips] + rbl[tips, None] * u[tips]])
@@ -201,14 +194,19 @@ def _nearest_jvp(primals, tangents):
     return -jax.scipy.special.logsumexp(-d, axis=1), jnp.sum(share * dd, axis=1)
 
 
-def pill_outlines(a, b, ra, rb, fractions) -> Float[Array, "m 2"]:
-    """Points on each pill's image outline: both sides at ``fractions`` and both cap ends."""
+def _sides(a, b, ra, rb, fractions) -> tuple[Array, Array, Array, Array]:
+    """Each pill's unit axis and normal in the image, and the axis points and radii at ``fractions``."""
     u = b - a
     u = u / jnp.sqrt(jnp.sum(u * u, -1) + 1e-9)[:, None]
-    n = jnp.stack([-u[:, 1], u[:, 0]], -1)
     f = jnp.asarray(fractions, a.dtype)
     centre = a[:, None] + f[None, :, None] * (b - a)[:, None]
     r = (ra[:, None] + f[None] * (rb - ra)[:, None])[..., None]
+    return u, jnp.stack([-u[:, 1], u[:, 0]], -1), centre, r
+
+
+def pill_outlines(a, b, ra, rb, fractions) -> Float[Array, "m 2"]:
+    """Points on each pill's image outline: both sides at ``fractions`` and both cap ends."""
+    u, n, centre, r = _sides(a, b, ra, rb, fractions)
     pts = jnp.concatenate([centre + r * n[:, None], centre - r * n[:, None], (a - ra[:, None] * u)[:, None],
                            (b + rb[:, None] * u)[:, None]], 1)
     return pts.reshape(-1, 2)

@@ -161,13 +161,9 @@ def candidates(model: Model, rig: tuple, feats: tuple, ghk: GHKState, extras, ex
     valid = jnp.concatenate([jnp.ones(1 + n_flips + n_folds, bool), extra_valid])
     solved = jax.vmap(lambda q0: solve_frame(model, rig, feats, q_pred, q0, build, fit_config, numbers, passes,
                                              priors, terms))(starts)
-    def merit_of(q):
-        merit = image_merit(model, rig, feats, q, fractions, numbers.robust_scale_px, numbers.rms_scale_px)
-        for term in terms:   # the measured terms judge too (1 for the others)
-            merit = merit * term.merit(model, rig, q)
-        return merit
-
-    merit = jax.vmap(merit_of)(solved.q)
+    merit = jax.vmap(lambda q: image_merit(model, rig, feats, q, fractions, numbers.robust_scale_px,
+                                           numbers.rms_scale_px))(solved.q)
+    merit = merit * solved.term_merit   # the measured terms judge too (solve_frame: 1 for the others)
     return _Candidates(solved=solved, merit=jnp.where(valid & solved.ok, merit, -1.0), features_ok=features_ok(feats))
 
 
