@@ -192,12 +192,17 @@ def as_rig(cameras) -> tuple[Camera, ...]:
 
 # ---- camera files (JSON) ----
 
+def _has_bool(x) -> bool:
+    """Whether a JSON value holds a boolean anywhere in its nested lists."""
+    return isinstance(x, bool) or (isinstance(x, list) and any(_has_bool(v) for v in x))
+
+
 def _camera_from_dict(d: dict, src: str) -> Camera:
     def arr(key, shape):
         if key not in d:
             raise CameraError(f"{src}: missing field {key!r}")
-        try:
-            a = np.asarray(d[key], float)
+        try:   # JSON true/false are not numbers, though NumPy would read them as 1/0
+            a = None if _has_bool(d[key]) else np.asarray(d[key], float)
         except (TypeError, ValueError):   # a string, a ragged list, a null
             a = None
         if a is None or a.shape != shape or not np.all(np.isfinite(a)):

@@ -3,6 +3,7 @@
 import json
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -25,9 +26,17 @@ def test_any_field_value_loads_or_raises_camera_error(tmp_path, field, value):
     except jh.CameraError as err:
         assert str(path) in str(err) and "\n" not in str(err)
         return
-    # Whatever loaded is a usable camera: finite pixels for a point in front of it.
-    px, depth = cam.project(np.array([0.0, 0.0, 0.0]))
-    assert np.all(np.isfinite(np.asarray(px))) and float(depth) > 0
+    # Whatever loaded is a usable camera: finite pixels for a point 100 mm in front of it.
+    p_world = (np.array([0.0, 0.0, 100.0]) - np.asarray(cam.t)) @ np.asarray(cam.R)
+    px, depth = cam.project(p_world)
+    assert np.all(np.isfinite(np.asarray(px))) and float(depth) == pytest.approx(100.0)
+
+
+def test_json_booleans_are_not_numbers(tmp_path):
+    path = tmp_path / "cam.json"
+    path.write_text(json.dumps(dict(_VALID, t=[False, False, True])))
+    with pytest.raises(jh.CameraError, match="field 't' must be finite numbers"):
+        jh.load_camera(path)
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
