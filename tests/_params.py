@@ -3,8 +3,8 @@
 import pytest
 
 #: built-in models whose cases run only under ``make test`` (``slow``): the fast loop keeps the
-#: small chains and hand21, which cover the same code paths
-HEAVY_MODELS = ("hand21_right", "hand27", "hand27_right", "mouse3d")
+#: small chains (two_fingers, index_thumb, ...), which cover the same code paths
+HEAVY_MODELS = ("hand21", "hand21_right", "hand27", "hand27_right", "mouse3d")
 
 
 def model_params(names):

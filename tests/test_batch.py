@@ -147,6 +147,7 @@ def sequences(tmp_path_factory):
     return paths
 
 
+@pytest.mark.slow
 def test_run_job_matches_the_single_command_and_compiles_once_per_structure(sequences, tmp_path, capsys):
     assert main(["track", str(sequences[1]), "--out", str(tmp_path / "ref"), "--no-video"]) == 0
     capsys.readouterr()

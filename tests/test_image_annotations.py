@@ -29,6 +29,7 @@ print("ok", sum(int(f.line_valid.sum()) for f in feats))
 """
 
 
+@pytest.mark.slow
 def test_pipeline_under_runtime_type_checking():
     pytest.importorskip("beartype")
     out = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, timeout=600)

@@ -101,6 +101,7 @@ def _args_two_cameras(m, q_obs, frame_3d="camera"):
 @pytest.mark.parametrize("frame_3d", ["camera", "world"])
 @pytest.mark.parametrize("where", ["zero", pytest.param("random", marks=pytest.mark.slow),
                                    pytest.param("rotated_near_pi", marks=pytest.mark.slow)])
+@pytest.mark.slow
 def test_geometric_jacobian_matches_autodiff_and_central_differences(frame_3d, where):
     m = jh.builtin_model("hand27")
     rng = np.random.default_rng(3)

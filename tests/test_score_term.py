@@ -75,6 +75,7 @@ def test_edges_fit_the_truth_and_hide_the_covered_sides(open_close):
 
 
 @pytest.mark.parametrize("config", [ON, EDGES], ids=["silhouette", "with-edges"])
+@pytest.mark.slow
 def test_jacobian_matches_central_differences(open_close, config):
     _, prior = _bound(open_close, 30, config)
     q = _q(open_close, 30, little_pip=-7.0, index_mcp_abd=3.0)

@@ -113,6 +113,7 @@ class _ExactFeaturesImageScore(AbstractFrontEnd):
         return self.image.score(images, qs, state)
 
 
+@pytest.mark.slow
 def test_a_blank_frame_loses_the_frame_the_residuals_would_keep(opposition):
     """Frames 0-2 of thumb_opposition, then frame 3 blank: exact features keep the residual
     confidence near 1 on every frame, the image score flags the blank one as lost (score 0) and

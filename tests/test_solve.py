@@ -279,6 +279,7 @@ def test_a_diverging_solve_returns_the_start_and_says_so():
 
 # ---- the thesis's fast mode, compilation, input validation ----
 
+@pytest.mark.slow
 def test_fast_mode_is_exactly_one_gauss_newton_update():
     m = jh.builtin_model("planar_rr")
     q_true = np.array([-np.pi / 3, -np.pi / 2 - np.pi / 6])
@@ -335,6 +336,7 @@ def test_inputs_are_validated_at_the_boundary():
         jh.fit_batch(m, rig, feats, Q0)
 
 
+@pytest.mark.slow
 def test_non_unit_start_quaternions_are_normalised():
     m, rig, Q, F, Q0 = problems("hand27")
     Q0 = Q0.copy()

@@ -30,6 +30,7 @@ def _qs(m, n, seed):
 
 
 @pytest.mark.parametrize("name", ["hand21", "hand27"])
+@pytest.mark.slow
 def test_lane_kinematics_match_the_reference(name):
     m = jh.builtin_model(name)
     Q = _qs(m, 4, 1)
@@ -122,6 +123,7 @@ def test_edge_lane_kernel_matches_the_reference(name):
         assert pat.nnz == 2 * (2 * 21 + 3 * 47) and pat.m * pat.n == 2 * 55 * 21 and pat.block_q.shape == (5, 5)
 
 
+@pytest.mark.slow
 def test_fit_batch_batch_solver_recovers_noise_free_poses_within_limits():
     m, cam, Q, F, Q0 = _edge_problems()
     res = jh.fit_batch(m, cam, F, Q0, solver="batch")
@@ -147,6 +149,7 @@ def _smallest_singular_value(m, cam, F, q):
 
 
 @pytest.mark.parametrize("solver", ["lm", "bounded"])
+@pytest.mark.slow
 def test_fit_batch_batch_solver_matches_fit_problem_by_problem(solver):
     # Noise-free problems: fit and the batch solver both end at the truth, so their poses differ
     # by at most the distance each has left to it. Near the truth r(q) ~ J (q - q*), so that
@@ -166,6 +169,7 @@ def test_fit_batch_batch_solver_matches_fit_problem_by_problem(solver):
         assert np.linalg.norm(np.asarray(res.q[i]) - np.asarray(ref.q)) <= 2 * bound
 
 
+@pytest.mark.slow
 def test_fit_batch_batch_solver_and_fit_agree_on_status_at_a_shared_cap():
     # Problem 5 of this set needs 45 trials here and 52 in fit's lm (see
     # test_fit_batch_batch_solver_recovers_noise_free_poses_within_limits): both stop at a cap of 40.
@@ -176,6 +180,7 @@ def test_fit_batch_batch_solver_and_fit_agree_on_status_at_a_shared_cap():
     assert list(status_name(capped.status)) == [status_name(r.status) for r in ref] == ["ok"] * 5 + ["max_steps"]
 
 
+@pytest.mark.slow
 def test_host_regrouping_gives_the_traced_loop_results():
     # Lanes are independent, so running them in phases of 2 trials and regrouping the slow ones
     # (solve_batched) must give what one loop per chunk gives (batched_lm), lane by lane.

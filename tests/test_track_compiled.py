@@ -57,6 +57,7 @@ def _noisy_features(model, rig, q, rng):
 
 
 @pytest.mark.parametrize("name", model_params(["two_fingers", "hand21", "hand27", "mouse3d"]))
+@pytest.mark.slow
 def test_geometric_jacobian_equals_jacfwd(name):
     m = jh.builtin_model(name)
     rng = np.random.default_rng(5)
@@ -111,6 +112,7 @@ def test_geometric_jacobian_at_the_singular_points():
             assert np.all(J[:, :4] == 0.0)
 
 
+@pytest.mark.slow
 def test_fit_with_geometric_jacobian_equals_autodiff():
     m = jh.builtin_model("index_thumb")
     rng = np.random.default_rng(4)

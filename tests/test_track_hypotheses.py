@@ -65,6 +65,7 @@ def _rad(m, **deg):
     return q
 
 
+@pytest.mark.slow
 def test_vmapped_starts_equal_single_solves(hand):
     m, rig, truth = hand
     rng = np.random.default_rng(1)
@@ -95,6 +96,7 @@ def test_vmapped_starts_equal_single_solves(hand):
     assert np.ptp(q_multi, axis=0).max() > 0.1
 
 
+@pytest.mark.slow
 def test_a_start_at_the_truth_wins(hand):
     m, (cam,), truth = hand
     # two views: one orthographic view leaves each finger's flexion towards or away from the
@@ -132,6 +134,7 @@ class _ScoredFrontEnd(AbstractFrontEnd):
 
 
 @pytest.mark.parametrize("target_deg", [20.0, -40.0])
+@pytest.mark.slow
 def test_the_image_score_decides_between_equal_residuals(hand, target_deg):
     m, rig, truth = hand
     # the index finger carries no features: its joints do not change the residuals at all
@@ -151,6 +154,7 @@ def test_the_image_score_decides_between_equal_residuals(hand, target_deg):
     np.testing.assert_allclose(np.delete(rep.q_solved, j), np.delete(truth, j), atol=1e-6)
 
 
+@pytest.mark.slow
 def test_nothing_to_add_gives_the_default_numbers(hand):
     m, rig, truth = hand
     rng = np.random.default_rng(3)
@@ -208,6 +212,7 @@ def test_recovery_after_a_forced_loss():
     assert at_truth[24].hypothesis == "proposal" and at_truth[24].starts == 8 and at_truth[24].reinitialised
 
 
+@pytest.mark.slow
 def test_track_sequence_passes_proposals_and_counts_reinitialisations(tmp_path):
     seq = make_preset("two_finger_occlusion", frames=8, size=(160, 120))
     d = tmp_path / "frames"
@@ -287,6 +292,7 @@ def test_choose_and_runners_up():
     assert runners_up(qs, total, 1, 0, 0.4, 0.1, angle).shape == (0, 2)
 
 
+@pytest.mark.slow
 def test_fold_starts_reflect_a_finger_hinge_across_the_image_plane():
     """An orthographic camera looking at the palm, fingers unabducted: every finger hinge turns
     about an axis across the view, so reflecting it across its fold leaves the image of the link

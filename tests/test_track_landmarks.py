@@ -70,6 +70,7 @@ def _tip_error_px(seq, q, frames, point=None):
     return float((d if point is None else d[:, POINT_NAMES.index(point)]).mean())
 
 
+@pytest.mark.slow   # tracks a sequence end to end
 def test_landmark_poses_fit_the_truth(seq, poses):
     assert poses.usable.all() and poses.fit == "frames"
     assert poses.median_px < 0.5, poses.median_px
@@ -77,6 +78,7 @@ def test_landmark_poses_fit_the_truth(seq, poses):
     assert poses.pose(FRAMES) is None and poses.pose(-1) is None
 
 
+@pytest.mark.slow   # tracks a sequence end to end
 def test_first_pose_is_the_landmark_fit(seq, poses, frames_dir, tmp_path):
     summary = track_sequence(seq.model, seq.cameras, [FrameSource(frames_dir, fps=25)], None, tmp_path / "o",
                              oracle(seq.model, seq.cameras, seq.q), landmarks=poses, video=False)
@@ -96,6 +98,7 @@ def test_first_pose_is_the_landmark_fit(seq, poses, frames_dir, tmp_path):
     assert summary["initial_pose"] == pose_to_dict(seq.model, q0)
 
 
+@pytest.mark.slow   # tracks a sequence end to end
 def test_a_lost_frame_restarts_from_its_landmark_pose(seq, poses, frames_dir, tmp_path):
     src = [FrameSource(frames_dir, fps=25)]
     summary = track_sequence(seq.model, seq.cameras, src, seq.q[0], tmp_path / "o", oracle(
@@ -125,6 +128,7 @@ def _wrong_features(seq, bad):
     return FunctionFrontEnd(lambda images, q, state, k: bad_feats.get(k, feats[k]), reextracts=False)
 
 
+@pytest.mark.slow   # tracks a sequence end to end
 def test_fusion_pulls_the_solve_to_the_landmarks(seq, poses):
     bad = range(3, 7)
     errors = {}
@@ -157,6 +161,7 @@ def test_landmark_term_masks_missing_points_and_checks_input():
         landmark_term(px, -1.0)
 
 
+@pytest.mark.slow   # tracks a sequence end to end
 def test_file_with_fewer_frames_is_tracked_on_and_reported(seq, lm_file, frames_dir, tmp_path):
     short = load_landmarks(lm_file).slice(0, 6)
     with pytest.warns(jh.JaxhandWarning, match="4 of the 10 frame"):

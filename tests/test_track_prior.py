@@ -83,6 +83,7 @@ def _track(seq, feats, config, frames=None):
     return reports
 
 
+@pytest.mark.slow
 def test_priors_off_is_the_program_without_priors_and_rms_counts_image_residuals_only(problem):
     seq, feats = problem
     base = _track(seq, feats, TrackConfig(reextract=0), 4)
@@ -101,6 +102,7 @@ def test_priors_off_is_the_program_without_priors_and_rms_counts_image_residuals
         np.testing.assert_allclose(rep.q_solved, rep.q_pred, atol=1e-5)
 
 
+@pytest.mark.slow
 def test_no_recompile_across_frames_nor_for_new_prior_numbers(problem):
     seq, feats = problem
     dt = float(seq.times_s[1] - seq.times_s[0])
@@ -122,6 +124,7 @@ def test_no_recompile_across_frames_nor_for_new_prior_numbers(problem):
     assert np.degrees(np.abs(rep.q_solved - seq.q[4])).mean() < 4.0   # sanity
 
 
+@pytest.mark.slow
 def test_information_weighted_estimate_on_exact_features_is_no_worse_than_the_raw_solve(problem):
     seq, feats = problem
     truth = np.asarray(seq.q)
