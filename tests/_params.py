@@ -7,6 +7,9 @@ import pytest
 HEAVY_MODELS = ("hand21", "hand21_right", "hand27", "hand27_right", "mouse3d")
 
 
-def model_params(names):
-    """``names`` as pytest parameters, the heavy models marked slow."""
-    return [pytest.param(n, marks=pytest.mark.slow) if n in HEAVY_MODELS else n for n in names]
+def model_params(names, fast=None):
+    """``names`` as pytest parameters, the heavy models (or, given ``fast``, every model not in it)
+    marked slow."""
+    def slow(n):
+        return n in HEAVY_MODELS if fast is None else n not in fast
+    return [pytest.param(n, marks=pytest.mark.slow) if slow(n) else n for n in names]

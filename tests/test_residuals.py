@@ -3,6 +3,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _params import model_params
 from helpers import fit_camera
 
 import jaxhand as jh
@@ -26,7 +27,7 @@ def _oblique(model, q=None):
 
 # Every built-in model is covered by test_solve's exact-fit test (H < 1e-10 at the truth); here a
 # fixed base, a free base and a planar chain.
-@pytest.mark.parametrize("name", ["index_thumb", "hand27", "planar_rr"])
+@pytest.mark.parametrize("name", model_params(["index_thumb", "hand27", "planar_rr"]))
 def test_residuals_vanish_at_the_pose_that_made_the_features(name):
     m = jh.builtin_model(name)
     q = jh.random_q(m, np.random.default_rng(3))
@@ -107,7 +108,7 @@ def test_weights_scale_the_cost_per_slot():
                                0.5 * (np.sum(r0[~scaled] ** 2) + w * np.sum(r0[scaled] ** 2)), rtol=1e-12)
 
 
-@pytest.mark.parametrize("name", ["index_thumb", "hand27", "planar_pr"])
+@pytest.mark.parametrize("name", model_params(["index_thumb", "hand27", "planar_pr"]))
 def test_residual_jacobian_matches_central_differences(name):
     m = jh.builtin_model(name)
     rng = np.random.default_rng(5)

@@ -90,7 +90,7 @@ PROGRAMS = [("gn", "gn_eta", "lm_fixed"), ("lm",), ("bounded",)]
 
 
 @pytest.mark.parametrize("solvers", PROGRAMS, ids=lambda s: "+".join(s))
-@pytest.mark.parametrize("name", model_params(jh.builtin_names()))
+@pytest.mark.parametrize("name", model_params(jh.builtin_names(), fast=("two_fingers", "index_thumb", "planar_rr")))
 def test_every_solver_fits_noise_free_problems_exactly_and_recovers_the_truth(name, solvers):
     m, rig, Q, F, Q0 = problems(name)
     lo, hi = np.asarray(m.q_lower), np.asarray(m.q_upper)

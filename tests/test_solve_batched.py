@@ -6,6 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _params import model_params
 
 import jaxhand as jh
 from jaxhand.kinematics import frame_poses, normalize_q
@@ -97,7 +98,7 @@ def _two_camera_features(m, Q, rng):
     return (ortho, persp), (F0, F1)
 
 
-@pytest.mark.parametrize("name", ["hand21", pytest.param("hand27", marks=pytest.mark.slow), "mouse3d", "planar_pr"])
+@pytest.mark.parametrize("name", model_params(["hand21", "hand27", "mouse3d", "planar_pr"]))
 def test_edge_lane_kernel_matches_the_reference(name):
     # fixed, free and planar bases and a prismatic joint; two cameras, masks, weights, K = 3
     m = jh.builtin_model(name)

@@ -80,7 +80,7 @@ def test_geometric_jacobian_equals_jacfwd(name):
     assert worst_r < 1e-9, worst_r
 
 
-@pytest.mark.parametrize("name", ["hand27", "mouse3d"])
+@pytest.mark.parametrize("name", model_params(["hand27", "mouse3d"]))
 def test_geometric_jacobian_matches_central_differences(name):
     m = jh.builtin_model(name)
     rng = np.random.default_rng(11)

@@ -258,6 +258,7 @@ def test_config_round_trip_and_errors(tmp_path):
         TrackConfig().merged({"hypotheses": {"recovr": 2}})
 
 
+@pytest.mark.slow
 def test_bad_proposals_and_scores_raise(hand):
     m, rig, truth = hand
     feats = features_from_pose(m, rig, truth)
