@@ -33,12 +33,12 @@ from jaxhand.io import load_devset, open_frames  # noqa: E402
 from jaxhand.track import (  # noqa: E402
     PRESETS,
     ExactFrontEnd,
-    ImageFrontEnd,
     TrackConfig,
     Tracker,
     accuracy_summary,
     config_to_dict,
     frame_tip_error_px,
+    image_front_end,
     loss_flag_quality,
 )
 
@@ -49,6 +49,9 @@ SETTINGS = {
     "default": {},
     # TrackConfig.preset("robust")
     "robust": PRESETS["robust"],
+    # ... with the foreground learned from the sequence (its median, seeded at the first pose)
+    "robust+sequence": {**PRESETS["robust"], "image": {**PRESETS["robust"]["image"],
+                                                       "score": {"foreground": "sequence"}}},
     # a fixed-sigma temporal prior around the g-h-k prediction, the g-h-k update reported
     "temporal5+dip": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "dip_pip_weight": 10.0}},
     # the solve with the prior reported (the filter only predicts)
@@ -96,9 +99,9 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
     if exact:
         frontend, images = ExactFrontEnd(m, cams, seq.truth.q[:n], noise_px=noise_px, seed=0), None
     else:
-        frontend = ImageFrontEnd(m, cams, config.image)
         folders = [seq.folder / Path(f[0]).parent for f in seq.truth.image_files]
         images = open_frames(folders, fps=seq.truth.fps)
+        frontend = image_front_end(m, cams, config.image, images, n)
     tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
     state = tracker.init(seq.truth.q[0])
     filt, raw, lost, times, conf, lost_flags = [], [], 0, [], [], []

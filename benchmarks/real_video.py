@@ -11,7 +11,10 @@ fit shared by the runs). Runs, each from frame 0's landmark pose:
 - ``b15``: also restart where the pose's landmark points lie a median > 15 px off (``--restart-px 15``);
 - ``c<W>``: ``b`` + ``--fuse-landmarks W``;
 - ``c<W>nf``: ``c<W>`` with ``--no-filter`` (the raw solve reported and predicted from), for the
-  first weight.
+  first weight;
+- ``r``: ``b`` with the robust preset and the foreground learned from the sequence
+  (``image.score.foreground = "sequence"``: the video's camera is still); ``rc<W>``: ``r`` +
+  ``--fuse-landmarks W``, for the first weight.
 
 On the fingers: every one of the 21 projected model landmark points (joint centres, fingertips
 on the skin, the wrist) within 15 px of MediaPipe's (``jaxhand.landmarks.landmark_agreement``).
@@ -23,6 +26,7 @@ Writes ``benchmarks/results/real_video.json``; the runs' folders (overlay videos
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -62,6 +66,10 @@ def runs(weights) -> dict[str, TrackConfig]:
     if weights:
         out[f"c{weights[0]:g}nf"] = TrackConfig(landmarks=LandmarkConfig(fuse_weight=weights[0]),
                                                  filter=FilterConfig(enabled=False))
+    robust = TrackConfig.preset("robust").merged({"image": {"score": {"foreground": "sequence"}}})
+    out["r"] = dataclasses.replace(robust, landmarks=LandmarkConfig())
+    if weights:
+        out[f"rc{weights[0]:g}"] = dataclasses.replace(robust, landmarks=LandmarkConfig(fuse_weight=weights[0]))
     return out
 
 
@@ -69,7 +77,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=621, help="frames of the video to track (default: all 621)")
     ap.add_argument("--weights", default="1,10", help="--fuse-landmarks weights of the c runs")
-    ap.add_argument("--runs", default=None, help="comma-separated subset of a,b,b15,c<W>")
+    ap.add_argument("--runs", default=None, help="comma-separated subset of a,b,b15,c<W>,c<W>nf,r,rc<W>")
     ap.add_argument("--out", default="/tmp/jaxhand_real_video", help="folder for the runs' outputs")
     ap.add_argument("--merge", action="store_true", help="add the runs to those of an earlier results file")
     args = ap.parse_args()

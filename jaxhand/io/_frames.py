@@ -95,6 +95,21 @@ class FrameSource:
     def __len__(self) -> int:
         return self._count
 
+    def spread(self, count: int, limit: int | None = None) -> np.ndarray:
+        """(k, H, W) up to ``count`` readable frames spread evenly over the first ``limit`` (all:
+        None), frame 0 first: what a background learned from the whole sequence reads."""
+        n = len(self) if limit is None else min(limit, len(self))
+        wanted = set(np.linspace(0, n - 1, min(count, n)).round().astype(int).tolist())
+        picked = []
+        for frame in self:
+            if frame.index >= n:
+                break
+            if frame.index in wanted and frame.image is not None:
+                picked.append(frame.image)
+        if not picked:
+            raise InputError(f"{self.path}: no readable frame to learn a background from")
+        return np.stack(picked)
+
     def _frame(self, i: int, name: str, image: np.ndarray) -> Frame:
         """The frame, or an unreadable one when its size is not :attr:`size` (an error on frame 0)."""
         h, w = image.shape[:2]

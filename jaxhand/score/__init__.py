@@ -40,6 +40,7 @@ from ._score import score_silhouette as score_silhouette
 from ._section import FOREGROUNDS as FOREGROUNDS
 from ._section import ScoreSection as ScoreSection
 from ._section import foreground_for as foreground_for
+from ._section import sequence_foreground as sequence_foreground
 from ._silhouette import CameraNumbers as CameraNumbers
 from ._silhouette import Capsules as Capsules
 from ._silhouette import Silhouette as Silhouette
@@ -59,5 +60,5 @@ __all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsule
            "rasterize", "AbstractForeground", "ThresholdForeground", "BackgroundForeground", "SkinForeground",
            "as_grey", "ScoreConfig", "ImageEvidence", "ImageScore", "image_evidence", "model_contour",
            "score_silhouette", "score_frame", "score_poses", "ConfidenceConfig", "frame_confidence", "FOREGROUNDS",
-           "ScoreSection", "foreground_for", "SilhouetteTermConfig", "SilhouetteTerm", "SilhouettePrior",
-           "silhouette_term", "pill_images"]
+           "ScoreSection", "foreground_for", "sequence_foreground", "SilhouetteTermConfig", "SilhouetteTerm",
+           "SilhouettePrior", "silhouette_term", "pill_images"]

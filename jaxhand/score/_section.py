@@ -17,11 +17,12 @@ from ._foreground import (
     ThresholdForeground,
 )
 from ._score import ScoreConfig
+from ._silhouette import capsules_from_model, rasterize
 
-__all__ = ["FOREGROUNDS", "ScoreSection", "foreground_for"]
+__all__ = ["FOREGROUNDS", "ScoreSection", "foreground_for", "sequence_foreground"]
 
 #: The foreground choices of :attr:`ScoreSection.foreground`.
-FOREGROUNDS = ("auto", "threshold", "background", "skin", "none")
+FOREGROUNDS = ("auto", "threshold", "background", "sequence", "skin", "none")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -36,7 +37,11 @@ class ScoreSection:
 
     Attributes:
         foreground: "auto" (skin on colour, a threshold on grey), "threshold", "background"
-            (needs ``background_image``), "skin", or "none" (the default): no image score, the
+            (needs ``background_image``), "sequence" (a static camera over any background: the
+            median of ``sequence_frames`` frames spread over the sequence, the hand's still parts
+            seeded by the model at the first pose; :meth:`BackgroundForeground.from_sequence`,
+            built by the front end from the frames :func:`jaxhand.track_sequence` passes it), "skin",
+            or "none" (the default): no image score, the
             tracker judges frames by their residuals alone. Off by default: a frame lost by the
             score is held, and without recovery that costs jaxhand's own experiments more than the
             better loss flag gains (benchmarks/README.md).
@@ -44,6 +49,7 @@ class ScoreSection:
         threshold: the grey level of the "fixed" method (0..255).
         background_image: path of an image of the empty scene, for "background".
         background_difference: grey-level difference from the background that counts as foreground.
+        sequence_frames: how many frames, spread evenly over the sequence, "sequence" learns from.
         skin_max_distance: Mahalanobis distance of the generic skin model's chrominance (see
             :class:`SkinForeground`).
         silhouette: how a silhouette is compared with the frame (:class:`ScoreConfig`).
@@ -54,6 +60,7 @@ class ScoreSection:
     threshold: float = 10.0
     background_image: str = ""
     background_difference: float = 12.0
+    sequence_frames: int = 60
     skin_max_distance: float = 2.5
     silhouette: ScoreConfig = ScoreConfig()
 
@@ -66,6 +73,8 @@ class ScoreSection:
         if self.foreground == "background" and not self.background_image:
             raise InputError("score.background_image: foreground 'background' needs the path of an image of the "
                              "empty scene")
+        if not (isinstance(self.sequence_frames, int) and self.sequence_frames >= 3):
+            raise InputError(f"score.sequence_frames: need an integer >= 3, got {self.sequence_frames!r}")
         if not self.skin_max_distance > 0:
             raise InputError(f"score.skin_max_distance: need > 0, got {self.skin_max_distance!r}")
         if not isinstance(self.silhouette, ScoreConfig):
@@ -101,4 +110,15 @@ def foreground_for(section: ScoreSection, image) -> AbstractForeground:
         if bg is None:
             raise InputError(f"score.background_image: cannot read {section.background_image!r} as an image")
         return BackgroundForeground.from_image(bg, difference=section.background_difference)
+    if kind == "sequence":
+        raise InputError("score.foreground 'sequence' learns from the whole sequence: track with "
+                         "jaxhand.track_sequence (or `jaxhand track`), or give ImageFrontEnd background_frames")
     raise InputError("score.foreground is 'none': no foreground model")
+
+
+def sequence_foreground(model, camera, q0, frames) -> BackgroundForeground:
+    """The "sequence" foreground of one camera: :meth:`BackgroundForeground.from_sequence` of
+    ``frames`` seeded by the model's silhouette (pills and occluders) at the first frame's pose
+    ``q0``."""
+    mask = rasterize(capsules_from_model(model, np.asarray(q0, float)), camera).mask
+    return BackgroundForeground.from_sequence(frames, mask)

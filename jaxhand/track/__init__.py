@@ -26,7 +26,14 @@ from ._config import (
     config_to_dict,
 )
 from ._config_toml import config_to_toml, load_track_config, save_track_config
-from ._frontend import AbstractFrontEnd, ExactFrontEnd, FrontEndDiagnostics, FrontEndResult, ImageFrontEnd
+from ._frontend import (
+    AbstractFrontEnd,
+    ExactFrontEnd,
+    FrontEndDiagnostics,
+    FrontEndResult,
+    ImageFrontEnd,
+    image_front_end,
+)
 from ._presets import PRESETS
 from ._score import confidence_of, frame_score, judge_frame
 from ._sequence import accuracy_summary, frame_tip_error_px, loss_flag_quality, track_sequence
@@ -36,7 +43,7 @@ __all__ = [
     "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig", "LandmarkConfig",
     "TRACK_CONFIG_VERSION", "PRESETS",
     "config_to_dict", "config_from_dict", "config_to_toml", "save_track_config", "load_track_config",
-    "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd",
+    "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd", "image_front_end",
     "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary", "frame_tip_error_px",
     "loss_flag_quality",
     "frame_score", "confidence_of", "judge_frame", "reweight",

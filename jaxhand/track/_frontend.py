@@ -15,6 +15,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from .._errors import InputError
 from ..camera import as_rig
 from ..features import Features, features_from_pose
 from ..image import ImageConfig, ImageState, WindowOutlines, extract_features, refresh_templates, update_widths
@@ -27,10 +28,12 @@ from ..score import (
     image_evidence,
     rasterize,
     score_silhouette,
+    sequence_foreground,
     silhouette_term,
 )
 
-__all__ = ["AbstractFrontEnd", "FrontEndDiagnostics", "FrontEndResult", "ImageFrontEnd", "ExactFrontEnd"]
+__all__ = ["AbstractFrontEnd", "FrontEndDiagnostics", "FrontEndResult", "ImageFrontEnd", "ExactFrontEnd",
+           "image_front_end"]
 
 @dataclasses.dataclass(frozen=True)
 class FrontEndDiagnostics:
@@ -105,9 +108,17 @@ class ImageFrontEnd(AbstractFrontEnd):
 
     reextracts: ClassVar[bool] = True
 
-    def __init__(self, model: Model, cameras, config: ImageConfig | None = None):
+    def __init__(self, model: Model, cameras, config: ImageConfig | None = None, *,
+                 background_frames: Sequence[np.ndarray] | None = None):
+        """``background_frames``: per camera, (N, H, W[, 3]) frames spread over the sequence, the
+        first of them the sequence's first frame, for the "sequence" foreground (``config.score``)."""
         self.model, self.cameras = model, as_rig(cameras)
         self.config = ImageConfig() if config is None else config
+        if background_frames is not None and len(background_frames) != len(self.cameras):
+            raise InputError(f"background_frames: expected one stack per camera ({len(self.cameras)}), "
+                             f"got {len(background_frames)}")
+        self.background_frames = background_frames
+        self._sequence_fg: tuple | None = None   # the "sequence" foregrounds, built at the first frame's pose
         self._cams = tuple(camera_numbers(c) for c in self.cameras) if self.config.score.enabled else ()
         self._evidence: tuple[tuple[bytes, ...], tuple] | None = None   # the last frame's, by content
         self._terms: tuple[int, tuple] | None = None   # the last frame's silhouette terms, by frame number
@@ -117,6 +128,9 @@ class ImageFrontEnd(AbstractFrontEnd):
         if self.config.width_gain > 0 and (state is None or state.radius_mm is None):
             state = update_widths(images, self.model, self.cameras, q, self.config, state, gain=1.0,
                                   fill_unmeasured=True)
+        if self.background_frames is not None and self._sequence_fg is None:
+            self._sequence_fg = tuple(sequence_foreground(self.model, cam, q, frames)
+                                      for cam, frames in zip(self.cameras, self.background_frames))
         features, diag = extract_features(images, self.model, self.cameras, q, self.config, state)
         timings = dict(diag.timings_s) if diag.timings_s else {}
         return FrontEndResult(tuple(features), diag.state,
@@ -131,7 +145,7 @@ class ImageFrontEnd(AbstractFrontEnd):
             section = self.config.score
             if not section.enabled:
                 section = dataclasses.replace(section, foreground="auto")
-            self._terms = (frame, tuple(silhouette_term(im, foreground_for(section, im), c, config)
+            self._terms = (frame, tuple(silhouette_term(im, self._foreground(section, c, im), c, config)
                                         for c, im in enumerate(images)))
         return self._terms[1]
 
@@ -165,9 +179,24 @@ class ImageFrontEnd(AbstractFrontEnd):
                     for im in images)
         if self._evidence is None or self._evidence[0] != key:
             section = self.config.score
-            self._evidence = (key, tuple(image_evidence(im, foreground_for(section, im), section.silhouette)
-                                         for im in images))
+            self._evidence = (key, tuple(image_evidence(im, self._foreground(section, c, im), section.silhouette)
+                                         for c, im in enumerate(images)))
         return self._evidence[1]
+
+    def _foreground(self, section, c: int, image):
+        """Camera ``c``'s foreground model for ``image``: the learned one for "sequence"."""
+        if section.foreground == "sequence" and self._sequence_fg is not None:
+            return self._sequence_fg[c]
+        return foreground_for(section, image)
+
+
+def image_front_end(model: Model, cameras, config: ImageConfig, sources, n_frames: int | None = None) -> ImageFrontEnd:
+    """The :class:`ImageFrontEnd` for a sequence read from ``sources`` (one frame source per camera,
+    :func:`jaxhand.io.open_frames`), given the frames its "sequence" foreground learns from."""
+    frames = None
+    if config.score.foreground == "sequence":
+        frames = [s.spread(config.score.sequence_frames, n_frames) for s in sources]
+    return ImageFrontEnd(model, cameras, config, background_frames=frames)
 
 
 class ExactFrontEnd(AbstractFrontEnd):

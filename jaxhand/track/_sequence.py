@@ -34,7 +34,7 @@ from ..kinematics import forward, project_pose
 from ..model import Model
 from ..viz import VideoWriter, draw_view, plot_joint_angles
 from ._config import TrackConfig, config_to_dict
-from ._frontend import AbstractFrontEnd, ImageFrontEnd
+from ._frontend import AbstractFrontEnd, ImageFrontEnd, image_front_end
 from ._landmarks import LandmarkRun
 from ._tracker import StepReport, Tracker
 
@@ -189,7 +189,7 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
     n = len(sources[0]) if max_frames is None else min(len(sources[0]), max_frames)
     truth = None if truth is None else _check_truth(model, truth, n)
     fps = sources[0].fps
-    frontend = ImageFrontEnd(model, cameras, config.image) if frontend is None else frontend
+    frontend = image_front_end(model, cameras, config.image, sources, n) if frontend is None else frontend
     if isinstance(frontend, ImageFrontEnd):   # the report records the settings the run used
         config = dataclasses.replace(config, image=frontend.config)
     tracker = Tracker(model, cameras, frontend, config, dt_s=1.0 / fps)
