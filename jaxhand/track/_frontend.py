@@ -29,6 +29,7 @@ from ..score import (
     score_silhouette,
     silhouette_term,
 )
+from ._support import ImageSupport, largest_unexplained_px
 
 __all__ = ["AbstractFrontEnd", "FrontEndDiagnostics", "FrontEndResult", "ImageFrontEnd", "ExactFrontEnd"]
 
@@ -86,6 +87,13 @@ class AbstractFrontEnd(abc.ABC):
         """The global image score in [0, 1] (1: the model's silhouette matches the image) of each
         candidate pose ``qs`` (k, n_q) of this frame, or None when the front end has no image
         score (the default): the tracker then judges poses by their residuals alone."""
+        return None
+
+    def support(self, images: Sequence[np.ndarray | None], q: np.ndarray, state: Any, margin_px: int = 1
+                ) -> ImageSupport | None:
+        """The image's support of the pose ``q`` (:class:`~jaxhand.track._support.ImageSupport`:
+        per link, and the foreground it leaves unexplained beyond ``margin_px``), or None when the
+        front end measures none (the default)."""
         return None
 
 
@@ -160,11 +168,32 @@ class ImageFrontEnd(AbstractFrontEnd):
                 scores[k, c] = score_silhouette(sil, ev, section.silhouette).score
         return scores.mean(1)
 
+    def support(self, images, q, state, margin_px: int = 1) -> ImageSupport:
+        """Each link's :func:`jaxhand.score.score_silhouette` link score at ``q`` per camera and the
+        largest unexplained foreground blob (:func:`~jaxhand.track._support.largest_unexplained_px`),
+        on the score's foreground ("auto" where the score is off, as for the silhouette term)."""
+        section = self._section()
+        caps = capsules_from_model_batch(self.model, np.asarray(q, float).reshape(1, -1))[0]
+        links, unexplained = [], 0
+        for cam, ev in zip(self._cameras(), self._frame_evidence(images)):
+            sil = rasterize(caps, cam, rim_points=section.silhouette.rim_points)
+            links.append(score_silhouette(sil, ev, section.silhouette).link_score[:self.model.n_links])
+            unexplained = max(unexplained, largest_unexplained_px(ev.foreground, sil.mask, margin_px))
+        return ImageSupport(link_score=np.stack(links), unexplained_px=float(unexplained))
+
+    def _section(self):
+        """The score's settings, with the "auto" foreground where the score itself is off."""
+        section = self.config.score
+        return section if section.enabled else dataclasses.replace(section, foreground="auto")
+
+    def _cameras(self) -> tuple:
+        return self._cams or tuple(camera_numbers(c) for c in self.cameras)
+
     def _frame_evidence(self, images) -> tuple:
         key = tuple(hashlib.blake2b(np.ascontiguousarray(im), digest_size=16).digest() + repr(np.shape(im)).encode()
                     for im in images)
         if self._evidence is None or self._evidence[0] != key:
-            section = self.config.score
+            section = self._section()
             self._evidence = (key, tuple(image_evidence(im, foreground_for(section, im), section.silhouette)
                                          for im in images))
         return self._evidence[1]
