@@ -82,8 +82,11 @@ def main() -> None:
         t, a = fit(flags, bad, good, ~test)
         loo[test] = flags[(t, a)][test]
         rb, rg = rates(flags[(t, a)], bad, good, test)
-        table.append([s, f"{t:.3f}", str(a) if a < 10 ** 9 else "off", f"{rb:.2f}", f"{rg:.3f}"])
-    print(format_table(table, ["held out", "support t", "blob a (px)", "bad flagged", "good flagged"]))
+        best = rates(flags[(t, a)], bad, good, ~test)
+        tied = [b for b in BLOB_A if rates(flags[(t, b)], bad, good, ~test) == best]   # same on the training set
+        table.append([s, f"{t:.3f}", "-".join(str(b) if b < 10 ** 9 else "off" for b in (tied[0], tied[-1])),
+                      f"{rb:.2f}", f"{rg:.3f}"])
+    print(format_table(table, ["held out", "support t", "blob a (px), tied", "bad flagged", "good flagged"]))
     everything = np.ones(len(rows), bool)
     chosen = before | (support < 0.88) | (blob > 8)
     for label, flag in (("held out", loo), ("before", before), ("the preset's levels (t 0.88, a > 8 px)", chosen)):
