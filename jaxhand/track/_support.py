@@ -80,8 +80,8 @@ class ImageSupport:
 
 
 def finger_of_link(model: Model) -> np.ndarray:
-    """(n_links,) the finger of each link: the index of its frame's ancestor right under the base
-    frame (a link on the base frame itself is its own group, -1: never judged as a finger)."""
+    """(n_links,) each link's finger: its frame's ancestor right under the base frame (as that
+    frame's index minus one); -1 for a link on the base frame itself, which no finger judges."""
     parents = model.parents
     out = []
     for frame in model.link_frame:
