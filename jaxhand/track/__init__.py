@@ -1,7 +1,7 @@
 """Tracking: a model through frames, one front end, one compiled solve-and-filter step per frame.
 
 - :class:`TrackConfig` (with :class:`FilterConfig`, :class:`RobustConfig`, :class:`LossConfig`, :class:`PriorConfig`,
-  :class:`HypothesisConfig`, :class:`LandmarkConfig`, a :class:`~jaxhand.FitConfig` and an
+  :class:`HypothesisConfig`, :class:`LandmarkConfig`, :class:`SupportConfig`, a :class:`~jaxhand.FitConfig` and an
   :class:`~jaxhand.ImageConfig`): every setting of a run, saved to and loaded from TOML
   (:func:`save_track_config`, :func:`load_track_config`);
 - :class:`AbstractFrontEnd` and its final implementations :class:`ImageFrontEnd` (the image
@@ -37,11 +37,12 @@ from ._frontend import (
 from ._presets import PRESETS
 from ._score import confidence_of, frame_score, judge_frame
 from ._sequence import accuracy_summary, frame_tip_error_px, loss_flag_quality, track_sequence
+from ._support import SupportConfig
 from ._tracker import StepReport, Tracker, TrackState
 
 __all__ = [
     "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig", "LandmarkConfig",
-    "TRACK_CONFIG_VERSION", "PRESETS",
+    "SupportConfig", "TRACK_CONFIG_VERSION", "PRESETS",
     "config_to_dict", "config_from_dict", "config_to_toml", "save_track_config", "load_track_config",
     "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd", "image_front_end",
     "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary", "frame_tip_error_px",

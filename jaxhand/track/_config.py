@@ -23,6 +23,7 @@ from ..image import ImageConfig
 from ..solve import FitConfig, solver_named
 from ..solve.internal import check_config
 from ._presets import PRESETS
+from ._support import SupportConfig
 
 __all__ = ["TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig",
            "LandmarkConfig", "config_to_dict", "config_from_dict", "TRACK_CONFIG_VERSION"]
@@ -304,8 +305,7 @@ class LandmarkConfig:
 
 
 def _tracker_fit() -> FitConfig:
-    # The tracker's solve: 20 iterations per frame and the geometric Jacobian (several times
-    # cheaper on the CPU than autodiff, equal to rounding; benchmarks/README.md).
+    # 20 iterations per frame, the geometric Jacobian (cheaper than autodiff; benchmarks/README.md)
     return FitConfig(max_steps=20, jacobian="geometric")
 
 
@@ -332,6 +332,7 @@ class TrackConfig:
             state (templates, widths) at the solved pose.
         landmarks: landmarks as start, restart and solve term (:class:`LandmarkConfig`; used
             only when a run is given landmarks).
+        support: the weakest finger's image support lowers the confidence (:class:`SupportConfig`; off).
     """
 
     solver: str = "bounded"
@@ -345,12 +346,13 @@ class TrackConfig:
     reextract: int = 1
     refresh_templates: bool = True
     landmarks: LandmarkConfig = dataclasses.field(default_factory=LandmarkConfig)
+    support: SupportConfig = dataclasses.field(default_factory=SupportConfig)
 
     def __post_init__(self):
         solver_named(self.solver)
         for name, kind in (("fit", FitConfig), ("image", ImageConfig), ("filter", FilterConfig),
                            ("robust", RobustConfig), ("loss", LossConfig), ("prior", PriorConfig),
-                           ("hypotheses", HypothesisConfig), ("landmarks", LandmarkConfig)):
+                           ("hypotheses", HypothesisConfig), ("landmarks", LandmarkConfig), ("support", SupportConfig)):
             _need(isinstance(getattr(self, name), kind), name,
                   f"expected a {kind.__name__}, got {type(getattr(self, name)).__name__}")
         try:
@@ -383,10 +385,8 @@ class TrackConfig:
 
 
 def _merge(base: dict, changes: dict) -> dict:
-    out = dict(base)
-    for k, v in changes.items():
-        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
-    return out
+    return {**base, **{k: _merge(base[k], v) if isinstance(v, dict) and isinstance(base.get(k), dict) else v
+                       for k, v in changes.items()}}
 
 
 def _plain(value):

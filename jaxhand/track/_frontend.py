@@ -31,6 +31,7 @@ from ..score import (
     sequence_foreground,
     silhouette_term,
 )
+from ._support import ImageSupport, largest_unexplained_px
 
 __all__ = ["AbstractFrontEnd", "FrontEndDiagnostics", "FrontEndResult", "ImageFrontEnd", "ExactFrontEnd",
            "image_front_end"]
@@ -91,6 +92,13 @@ class AbstractFrontEnd(abc.ABC):
         score (the default): the tracker then judges poses by their residuals alone."""
         return None
 
+    def support(self, images: Sequence[np.ndarray | None], q: np.ndarray, state: Any, margin_px: int = 1
+                ) -> ImageSupport | None:
+        """The image's support of the pose ``q`` (:class:`~jaxhand.track._support.ImageSupport`:
+        per link, and the foreground it leaves unexplained beyond ``margin_px``), or None when the
+        front end measures none (the default)."""
+        return None
+
 
 class ImageFrontEnd(AbstractFrontEnd):
     """The image front end: :func:`jaxhand.image.extract_features` carrying its state
@@ -142,9 +150,7 @@ class ImageFrontEnd(AbstractFrontEnd):
         if not config.enabled:
             return ()
         if self._terms is None or self._terms[0] != frame:
-            section = self.config.score
-            if not section.enabled:
-                section = dataclasses.replace(section, foreground="auto")
+            section = self._section()
             self._terms = (frame, tuple(silhouette_term(im, self._foreground(section, c, im), c, config)
                                         for c, im in enumerate(images)))
         return self._terms[1]
@@ -174,11 +180,32 @@ class ImageFrontEnd(AbstractFrontEnd):
                 scores[k, c] = score_silhouette(sil, ev, section.silhouette).score
         return scores.mean(1)
 
+    def support(self, images, q, state, margin_px: int = 1) -> ImageSupport:
+        """Each link's :func:`jaxhand.score.score_silhouette` link score at ``q`` per camera and the
+        largest unexplained foreground blob (:func:`~jaxhand.track._support.largest_unexplained_px`),
+        on the score's foreground ("auto" where the score is off, as for the silhouette term)."""
+        section = self._section()
+        caps = capsules_from_model_batch(self.model, np.asarray(q, float).reshape(1, -1))[0]
+        links, unexplained = [], 0
+        for cam, ev in zip(self._cameras(), self._frame_evidence(images)):
+            sil = rasterize(caps, cam, rim_points=section.silhouette.rim_points)
+            links.append(score_silhouette(sil, ev, section.silhouette).link_score[:self.model.n_links])
+            unexplained = max(unexplained, largest_unexplained_px(ev.foreground, sil.mask, margin_px))
+        return ImageSupport(link_score=np.stack(links), unexplained_px=float(unexplained))
+
+    def _section(self):
+        """The score's settings, with the "auto" foreground where the score itself is off."""
+        section = self.config.score
+        return section if section.enabled else dataclasses.replace(section, foreground="auto")
+
+    def _cameras(self) -> tuple:
+        return self._cams or tuple(camera_numbers(c) for c in self.cameras)
+
     def _frame_evidence(self, images) -> tuple:
         key = tuple(hashlib.blake2b(np.ascontiguousarray(im), digest_size=16).digest() + repr(np.shape(im)).encode()
                     for im in images)
         if self._evidence is None or self._evidence[0] != key:
-            section = self.config.score
+            section = self._section()
             self._evidence = (key, tuple(image_evidence(im, self._foreground(section, c, im), section.silhouette)
                                          for c, im in enumerate(images)))
         return self._evidence[1]

@@ -6,10 +6,12 @@ __all__ = ["PRESETS"]
 #: g-h-k filter reported, a lost frame held). "robust": for images jaxhand did not draw: the
 #: silhouette term in every solve and as the judge of six starts (the prediction, four flips of
 #: the least observed joints, the last solve) plus the rest pose, a weak DIP-PIP coupling, the
-#: solve reported (the filter only predicts) and no hold (benchmarks/README.md, dev-set tables).
+#: solve reported (the filter only predicts), no hold, and the weakest finger's image support in
+#: the confidence (benchmarks/README.md, dev-set tables).
 PRESETS: dict[str, dict] = {
     "thesis": {},
     "robust": {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False},
                "filter": {"report_solve": True}, "prior": {"dip_pip_weight": 4.0},
-               "hypotheses": {"flips": 4, "flip_deg": 40.0, "last_solve": True, "rest": True}},
+               "hypotheses": {"flips": 4, "flip_deg": 40.0, "last_solve": True, "rest": True},
+               "support": {"enabled": True}},
 }

@@ -41,6 +41,7 @@ from ._config import TrackConfig
 from ._frontend import AbstractFrontEnd, FrontEndDiagnostics
 from ._hypotheses import HypothesisProgram, check_proposals, choose, extra_starts, runners_up
 from ._score import held_filter, judge_frame
+from ._support import finger_of_link, support_confidence, unexplained_confidence, weakest_finger
 
 __all__ = ["TrackState", "StepReport", "Tracker"]
 
@@ -143,6 +144,7 @@ class Tracker:
         self._ghk_tree = jax.tree_util.tree_structure(ghk_init(jnp.zeros(model.n_q)))
         nl, nt = model.n_links, model.n_tips
         self._shapes = ((nl, 3), (nl,), (nl,), (nt, 2), (nt,), (nt,))
+        self._finger = finger_of_link(model)
 
     def _feature_arrays(self, features) -> tuple[tuple, ...]:
         """The front end's features as one tuple of :data:`FEATURE_FIELDS` arrays per camera,
@@ -215,6 +217,16 @@ class Tracker:
         full[good] = scores
         return full
 
+    def _support(self, images, q, fe_state) -> float:
+        """The image's support of ``q`` as a confidence: the lower of the weakest finger's and the
+        unexplained foreground's (:mod:`jaxhand.track._support`; 1 when the front end measures none)."""
+        config = self.config.support
+        measured = self.frontend.support(images, q, fe_state, config.margin_px)
+        if measured is None:
+            return 1.0
+        return min(support_confidence(weakest_finger(measured.link_score, self._finger), config),
+                   unexplained_confidence(measured.unexplained_px, config))
+
     def step(self, state: TrackState, images: Sequence[np.ndarray | None], frame: int = 0, time_s: float = 0.0,
              proposals=None, terms: tuple = ()) -> tuple[TrackState, StepReport]:
         """Process one frame (one image per camera; ``frame`` is passed to the front end).
@@ -269,6 +281,8 @@ class Tracker:
                                                                state.score_reference)
         if lost and not out["lost"] and self.config.loss.hold:   # lost by the image score: hold still
             filtered, ghk_next = np.asarray(state.q_last), held_filter(state.q_last)
+        if self.config.support.enabled and not lost:
+            confidence = min(confidence, self._support(images, filtered, fe_state))
         if np.isfinite(image_score) or extras is not None:
             timings["score"] = picked.score_s + (time.perf_counter() - t3)
             t3 = time.perf_counter()

@@ -1,0 +1,132 @@
+"""Per-finger image support: the confidence a frame loses when one finger of the estimate is not
+backed by the image, even though the whole model stays inside the foreground (issue 13).
+
+A link's support is its :func:`jaxhand.score.score_silhouette` link score at the reported pose
+(the mean of its visible pixels' foreground share and its own contour's closeness to the image's
+edges). A *finger* is a chain of links under one child of the base frame; its support is the
+mean over its judged links (a hidden link gives no evidence either way), and the frame's is the
+weakest finger's. :func:`support_confidence` maps it onto [0, 1] with a ramp.
+
+The converse evidence: foreground the estimate leaves unexplained (:func:`largest_unexplained_px`,
+the largest blob of foreground outside the grown silhouette), e.g. the tip of a finger the model
+has put somewhere else; :func:`unexplained_confidence` maps its area onto [0, 1]. The tracker
+keeps the lowest of these and the frame's other confidence (host side, NumPy and OpenCV).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import cv2
+import numpy as np
+
+from .._errors import InputError
+from ..model import Model
+
+__all__ = ["SupportConfig", "ImageSupport", "finger_of_link", "weakest_finger", "support_confidence",
+           "largest_unexplained_px", "unexplained_confidence"]
+
+
+@dataclasses.dataclass(frozen=True)
+class SupportConfig:
+    """The per-finger support rule (:mod:`jaxhand.track._support`). Off by default (the thesis'
+    confidence alone); on in the "robust" preset.
+
+    Attributes:
+        enabled: host. Lower the confidence by the weakest finger's image support.
+        lost: host, in [0, 1]. The finger support at which this term's confidence is 0.
+        good: host, in [0, 1]. ...and at which it is 1 (the midpoint is where a frame is flagged).
+        unexplained_px: host, px. The area of unexplained foreground at which that term's
+            confidence is 0.5 (0 at twice it); 0: the term is off.
+        margin_px: host, px. The silhouette is grown by this before the foreground outside it
+            counts as unexplained (the outline's rounding and antialiasing).
+    """
+
+    enabled: bool = False
+    lost: float = 0.80
+    good: float = 0.96
+    unexplained_px: float = 8.0
+    margin_px: int = 1
+
+    def __post_init__(self):
+        if not isinstance(self.enabled, bool):
+            raise InputError(f"support.enabled: expected true or false, got {self.enabled!r}")
+        for name in ("lost", "good"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise InputError(f"support.{name}: expected a finite number, got {value!r}")
+        if not 0.0 <= self.lost < self.good <= 1.0:
+            raise InputError(f"support.lost: need 0 <= lost < good <= 1, got {self.lost}, {self.good}")
+        if isinstance(self.unexplained_px, bool) or not (isinstance(self.unexplained_px, (int, float))
+                                                         and math.isfinite(self.unexplained_px)
+                                                         and self.unexplained_px >= 0):
+            raise InputError(f"support.unexplained_px: expected a finite number >= 0, got {self.unexplained_px!r}")
+        if isinstance(self.margin_px, bool) or not isinstance(self.margin_px, int) or self.margin_px < 0:
+            raise InputError(f"support.margin_px: expected a whole number >= 0, got {self.margin_px!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class ImageSupport:
+    """What a front end measures of one pose against one frame (:meth:`AbstractFrontEnd.support`).
+
+    Attributes:
+        link_score: (cameras, n_links) each link's support in [0, 1] (NaN: not judged).
+        unexplained_px: the largest blob of unexplained foreground over the cameras (px).
+    """
+
+    link_score: np.ndarray
+    unexplained_px: float = 0.0
+
+
+def finger_of_link(model: Model) -> np.ndarray:
+    """(n_links,) each link's finger: its frame's ancestor right under the base frame (as that
+    frame's index minus one); -1 for a link on the base frame itself, which no finger judges."""
+    parents = model.parents
+    out = []
+    for frame in model.link_frame:
+        f = frame
+        while f > 0 and parents[f] > 0:
+            f = parents[f]
+        out.append(f - 1 if f > 0 else -1)
+    return np.asarray(out, int)
+
+
+def weakest_finger(link_scores, finger: np.ndarray) -> float:
+    """The lowest finger support: per finger the mean of its links' scores (NaN: not judged, left
+    out; ``link_scores`` may be (cameras, links), then averaged over the cameras that judge a
+    link first). NaN when no finger has a judged link."""
+    s = np.asarray(link_scores, float).reshape(-1, len(finger))
+    judged = np.isfinite(s)
+    per_link = np.where(judged.any(0), np.where(judged, s, 0.0).sum(0) / np.maximum(judged.sum(0), 1), np.nan)
+    supports = [np.nanmean(per_link[finger == g]) for g in np.unique(finger[finger >= 0])
+                if np.isfinite(per_link[finger == g]).any()]
+    return float(min(supports)) if supports else float("nan")
+
+
+def support_confidence(support: float, config: SupportConfig) -> float:
+    """The support's confidence: 0 at ``config.lost``, 1 at ``config.good``, linear between and
+    clipped; 1 for NaN (no finger judged: no evidence against the frame)."""
+    if not np.isfinite(support):
+        return 1.0
+    return float(np.clip((support - config.lost) / (config.good - config.lost), 0.0, 1.0))
+
+
+def largest_unexplained_px(foreground, silhouette, margin_px: int) -> int:
+    """The area (px) of the largest 8-connected blob of ``foreground`` outside ``silhouette``
+    grown by ``margin_px``, after a 3x3 opening (slivers one pixel wide along the outline are
+    rounding, not a finger)."""
+    grown = cv2.dilate(np.asarray(silhouette, np.uint8),
+                       cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1, 2 * margin_px + 1)))
+    outside = (np.asarray(foreground, bool) & (grown == 0)).astype(np.uint8)
+    outside = cv2.morphologyEx(outside, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    n, _, stats, _ = cv2.connectedComponentsWithStats(outside, connectivity=8)
+    return int(stats[1:, cv2.CC_STAT_AREA].max()) if n > 1 else 0
+
+
+def unexplained_confidence(area_px: float, config: SupportConfig) -> float:
+    """The unexplained foreground's confidence: 1 at none, 0.5 at ``config.unexplained_px``, 0 at
+    twice it (linear, clipped); 1 when the term is off."""
+    if config.unexplained_px <= 0:
+        return 1.0
+    return float(np.clip(1.0 - area_px / (2.0 * config.unexplained_px), 0.0, 1.0))

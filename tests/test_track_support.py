@@ -1,0 +1,157 @@
+"""The per-finger image support in the confidence (jaxhand.track._support, issue 13): a finger the
+image does not back lowers the frame's confidence even when the model stays inside the foreground."""
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from jaxhand import InputError
+from jaxhand.io import load_devset
+from jaxhand.render import make_preset
+from jaxhand.score import ScoreSection, foreground_for, score_frame
+from jaxhand.track import (
+    AbstractFrontEnd,
+    ExactFrontEnd,
+    ImageFrontEnd,
+    SupportConfig,
+    TrackConfig,
+    Tracker,
+    config_from_dict,
+)
+from jaxhand.track._support import (
+    ImageSupport,
+    finger_of_link,
+    largest_unexplained_px,
+    support_confidence,
+    unexplained_confidence,
+    weakest_finger,
+)
+
+DEVSET = Path(__file__).resolve().parent.parent / "data" / "mujoco"
+
+
+@pytest.fixture(scope="module")
+def opposition():
+    return load_devset(DEVSET / "thumb_opposition")
+
+
+def test_support_config_checks_its_levels():
+    with pytest.raises(InputError, match="support.lost"):
+        SupportConfig(lost=0.9, good=0.9)
+    with pytest.raises(InputError, match="support.unexplained_px"):
+        SupportConfig(unexplained_px=-1.0)
+    for key, value in (("enabled", 1), ("margin_px", -1)):
+        with pytest.raises(InputError, match=f"support.{key}"):
+            config_from_dict({"support": {key: value}})
+    assert not TrackConfig().support.enabled
+    assert TrackConfig().preset("robust").support.enabled
+
+
+def test_the_hands_links_group_into_its_five_fingers(opposition):
+    finger = finger_of_link(opposition.model)
+    names = opposition.model.link_names
+    assert len(np.unique(finger)) == 5
+    for i, a in enumerate(names):
+        for j, b in enumerate(names):
+            assert (finger[i] == finger[j]) == (a.split("_")[0] == b.split("_")[0]), (a, b)
+
+
+def test_weakest_finger_averages_cameras_and_leaves_hidden_links_out():
+    finger = np.array([0, 0, 1, 1])
+    # finger 0: link 0 judged by one camera (0.9), link 1 by both (0.7, 0.9 -> 0.8): 0.85
+    # finger 1: link 2 hidden in both cameras, link 3 at 0.6 and 0.8: 0.7
+    scores = np.array([[0.9, 0.7, np.nan, 0.6], [np.nan, 0.9, np.nan, 0.8]])
+    assert weakest_finger(scores, finger) == pytest.approx(0.7)
+    assert weakest_finger(scores[:1], finger) == pytest.approx(0.6)
+    assert np.isnan(weakest_finger(np.full((1, 4), np.nan), finger))
+
+
+def test_support_confidence_is_a_clipped_ramp():
+    config = SupportConfig(lost=0.8, good=0.96)
+    assert support_confidence(0.88, config) == pytest.approx(0.5)
+    assert support_confidence(0.7, config) == 0.0
+    assert support_confidence(0.99, config) == 1.0
+    assert support_confidence(float("nan"), config) == 1.0
+    config = SupportConfig(unexplained_px=8.0)
+    assert [unexplained_confidence(a, config) for a in (0, 8, 12, 20)] == pytest.approx([1.0, 0.5, 0.25, 0.0])
+    assert unexplained_confidence(100, SupportConfig(unexplained_px=0.0)) == 1.0
+
+
+def test_unexplained_foreground_is_the_largest_blob_beyond_the_margin():
+    silhouette = np.zeros((40, 40), bool)
+    silhouette[10:30, 10:20] = True
+    foreground = silhouette.copy()
+    foreground[10:30, 20] = True            # a one-pixel rim along the outline: within the margin
+    assert largest_unexplained_px(foreground, silhouette, 1) == 0
+    foreground[5:8, 30:34] = True           # a 3x4 blob away from the model
+    foreground[35, 0:30] = True             # a one-pixel line: removed by the opening
+    assert largest_unexplained_px(foreground, silhouette, 1) == 12
+    foreground[10:15, 20:25] = True         # a 5x5 blob on the outline: its first column lies in the margin
+    assert largest_unexplained_px(foreground, silhouette, 1) == 20
+
+
+def test_a_finger_bent_inside_the_foreground_loses_the_confidence(opposition):
+    """thumb_opposition frame 20: at the true pose the weakest finger keeps the confidence above
+    0.5; with the index bent 30 deg at its knuckle the model still lies wholly inside the
+    foreground (coverage 1), which the global score barely sees, but the index's own links lose
+    their support and the frame its confidence."""
+    seq, m = opposition, opposition.model
+    image = cv2.imread(str(seq.image_paths[0][20]), cv2.IMREAD_GRAYSCALE)
+    config = TrackConfig().preset("robust")
+    frontend = ImageFrontEnd(m, seq.truth.cameras, config.image)
+    q = np.array(seq.truth.q[20])
+    bent = q.copy()
+    bent[m.q_names.index("index_mcp_flex")] += np.radians(30)
+    finger = finger_of_link(m)
+    at_true, at_bent = (frontend.support([image], x, None) for x in (q, bent))
+    assert at_true.unexplained_px == 0
+    assert support_confidence(weakest_finger(at_true.link_score, finger), config.support) >= 0.5
+    assert support_confidence(weakest_finger(at_bent.link_score, finger), config.support) < 0.5
+    scores = at_bent.link_score
+    assert np.nanargmin(scores[0]) in np.flatnonzero(finger == finger[m.link_names.index("index_proximal")])
+    foreground = foreground_for(ScoreSection(foreground="auto"), image)
+    assert score_frame(m, seq.truth.cameras[0], bent, image, foreground).coverage > 0.99
+
+
+class _Supported(AbstractFrontEnd):
+    """Exact features, and a fixed link support (None: the front end measures none)."""
+
+    reextracts = False
+
+    def __init__(self, exact, support):
+        self.exact, self.measured = exact, support
+
+    def extract(self, images, q_start, state, frame):
+        return self.exact.extract(images, q_start, state, frame)
+
+    def support(self, images, q, state, margin_px=1):
+        return self.measured
+
+
+@pytest.mark.parametrize("support, unexplained, enabled, low", [
+    (0.5, 0, True, True), (0.95, 0, True, False), (0.95, 20, True, True), (0.5, 20, False, False),
+    (None, 0, True, False)])
+def test_the_tracker_takes_the_lower_confidence(support, unexplained, enabled, low):
+    """A clean exact-feature frame is confident; a front end reporting weak support for one finger,
+    or a blob of unexplained foreground, lowers it below 0.5 when the rule is on, without losing
+    the frame or moving the estimate."""
+    seq = make_preset("two_finger_occlusion", frames=3, size=(160, 120))
+    exact = ExactFrontEnd(seq.model, seq.cameras, seq.q, noise_px=0.0)
+    measured = None
+    if support is not None:
+        scores = np.full((1, seq.model.n_links), 0.99)
+        scores[0, 0] = support
+        measured = ImageSupport(link_score=scores, unexplained_px=float(unexplained))
+    config = TrackConfig(support=SupportConfig(enabled=enabled))
+    runs = []
+    for frontend in (exact, _Supported(exact, measured)):
+        tracker = Tracker(seq.model, seq.cameras, frontend, config)
+        _, rep = tracker.step(tracker.init(seq.q[0]), [None] * len(seq.cameras), 0)
+        runs.append(rep)
+    plain, judged = runs
+    assert plain.confidence >= 0.5 and not plain.lost
+    assert (judged.confidence < 0.5) == low
+    assert not judged.lost
+    np.testing.assert_array_equal(judged.q_filtered, plain.q_filtered)
