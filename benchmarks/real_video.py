@@ -66,7 +66,7 @@ def runs(weights) -> dict[str, TrackConfig]:
     if weights:
         out[f"c{weights[0]:g}nf"] = TrackConfig(landmarks=LandmarkConfig(fuse_weight=weights[0]),
                                                  filter=FilterConfig(enabled=False))
-    robust = TrackConfig.preset("robust").merged({"image": {"score": {"foreground": "sequence"}}})
+    robust = TrackConfig().preset("robust").merged({"image": {"score": {"foreground": "sequence"}}})
     out["r"] = dataclasses.replace(robust, landmarks=LandmarkConfig())
     if weights:
         out[f"rc{weights[0]:g}"] = dataclasses.replace(robust, landmarks=LandmarkConfig(fuse_weight=weights[0]))
