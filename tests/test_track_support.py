@@ -1,9 +1,11 @@
 """The per-finger image support in the confidence (jaxhand.track._support, issue 13): a finger the
 image does not back lowers the frame's confidence even when the model stays inside the foreground."""
 
+import dataclasses
 from pathlib import Path
 
 import cv2
+import equinox as eqx
 import numpy as np
 import pytest
 
@@ -23,6 +25,7 @@ from jaxhand.track import (
 from jaxhand.track._support import (
     ImageSupport,
     finger_of_link,
+    judge_weights,
     largest_unexplained_px,
     support_confidence,
     unexplained_confidence,
@@ -155,3 +158,49 @@ def test_the_tracker_takes_the_lower_confidence(support, unexplained, enabled, l
     assert (judged.confidence < 0.5) == low
     assert not judged.lost
     np.testing.assert_array_equal(judged.q_filtered, plain.q_filtered)
+
+
+def test_judge_weights_are_the_weakest_finger_to_a_power():
+    finger = np.array([0, 0, 1, 1])
+    scores = [np.array([[0.9, 0.7, 0.8, 0.8]]), np.array([[np.nan, np.nan, np.nan, np.nan]])]
+    np.testing.assert_allclose(judge_weights(scores, finger, 4.0), [0.8**4, 1.0])
+    with pytest.raises(InputError, match="support.judge_power: expected a finite number >= 0, got -1"):
+        SupportConfig(judge_power=-1)
+
+
+class _Unseen(AbstractFrontEnd):
+    """Exact features with the index's distal link and tip hidden (its joint is unobservable), and
+    a link support that backs only a distal joint bent past ``backed_rad``."""
+
+    reextracts = False
+
+    def __init__(self, exact, backed_rad):
+        self.exact, self.backed_rad = exact, backed_rad
+
+    def extract(self, images, q_start, state, frame):
+        out = self.exact.extract(images, q_start, state, frame)
+        hide = [eqx.tree_at(lambda f: (f.line_valid, f.tip_valid), f,
+                            (f.line_valid.at[5].set(False), f.tip_valid.at[1].set(False))) for f in out.features]
+        return dataclasses.replace(out, features=tuple(hide))
+
+    def support(self, images, q, state, margin_px=1):
+        return ImageSupport(link_score=np.full((1, 6), 0.99 if q[5] < self.backed_rad else 0.6))
+
+
+@pytest.mark.parametrize("power", [0.0, 4.0])
+def test_the_support_judges_starts_the_edges_cannot_tell_apart(power):
+    """The index's distal joint (limits -80..0 deg, 0 at frame 0) sees nothing, so the prediction
+    (0) and its flip (-40; +40 is clipped to 0) fit the edges alike and the prediction wins the
+    tie; judged by the finger support (power > 0), a flip the image backs (< -20 deg) wins."""
+    seq = make_preset("two_finger_occlusion", frames=3, size=(160, 120))
+    exact = ExactFrontEnd(seq.model, seq.cameras, seq.q, noise_px=0.0)
+    config = TrackConfig(support=SupportConfig(judge_power=power)).merged(
+        {"hypotheses": {"flips": 2, "flip_deg": 40.0}})
+    tracker = Tracker(seq.model, seq.cameras, _Unseen(exact, np.radians(-20)), config)
+    state, _ = tracker.step(tracker.init(seq.q[0]), [None] * len(seq.cameras), 0)
+    _, rep = tracker.step(state, [None] * len(seq.cameras), 1)
+    dip = np.degrees(rep.q_solved[5])
+    if power:
+        assert dip < -20.0   # a flip won at frame 0 already, and the flips of its prediction at frame 1
+    else:
+        assert dip == pytest.approx(0.0, abs=1e-6) and rep.hypothesis == "prediction"

@@ -24,8 +24,8 @@ import numpy as np
 from .._errors import InputError
 from ..model import Model
 
-__all__ = ["SupportConfig", "ImageSupport", "finger_of_link", "weakest_finger", "support_confidence",
-           "largest_unexplained_px", "unexplained_confidence"]
+__all__ = ["SupportConfig", "ImageSupport", "finger_of_link", "weakest_finger", "judge_weights",
+           "support_confidence", "largest_unexplained_px", "unexplained_confidence"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,6 +41,10 @@ class SupportConfig:
             confidence is 0.5 (0 at twice it); 0: the term is off.
         margin_px: host, px. The silhouette is grown by this before the foreground outside it
             counts as unexplained (the outline's rounding and antialiasing).
+        judge_power: host, >= 0. Each hypothesis's merit is also multiplied by its weakest
+            finger's support to this power, so that of two starts the silhouette cannot tell
+            apart (a finger lying on another's image) the one whose fingers the image backs
+            wins; 0: off. Works whether or not ``enabled`` is.
     """
 
     enabled: bool = False
@@ -48,6 +52,7 @@ class SupportConfig:
     good: float = 0.96
     unexplained_px: float = 8.0
     margin_px: int = 1
+    judge_power: float = 0.0
 
     def __post_init__(self):
         if not isinstance(self.enabled, bool):
@@ -62,6 +67,9 @@ class SupportConfig:
                                                          and math.isfinite(self.unexplained_px)
                                                          and self.unexplained_px >= 0):
             raise InputError(f"support.unexplained_px: expected a finite number >= 0, got {self.unexplained_px!r}")
+        if isinstance(self.judge_power, bool) or not (isinstance(self.judge_power, (int, float))
+                                                      and math.isfinite(self.judge_power) and self.judge_power >= 0):
+            raise InputError(f"support.judge_power: expected a finite number >= 0, got {self.judge_power!r}")
         if isinstance(self.margin_px, bool) or not isinstance(self.margin_px, int) or self.margin_px < 0:
             raise InputError(f"support.margin_px: expected a whole number >= 0, got {self.margin_px!r}")
 
@@ -102,6 +110,13 @@ def weakest_finger(link_scores, finger: np.ndarray) -> float:
     supports = [np.nanmean(per_link[finger == g]) for g in np.unique(finger[finger >= 0])
                 if np.isfinite(per_link[finger == g]).any()]
     return float(min(supports)) if supports else float("nan")
+
+
+def judge_weights(link_scores: list, finger: np.ndarray, power: float) -> np.ndarray:
+    """(candidates,) each candidate's weakest finger support to ``power`` (1 where no finger is
+    judged), from each candidate's (cameras, links) link scores: the hypotheses' image judge."""
+    weakest = np.array([weakest_finger(s, finger) for s in link_scores])
+    return np.where(np.isfinite(weakest), np.clip(weakest, 0.0, 1.0), 1.0) ** power
 
 
 def support_confidence(support: float, config: SupportConfig) -> float:

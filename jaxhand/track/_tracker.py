@@ -41,7 +41,7 @@ from ._config import TrackConfig
 from ._frontend import AbstractFrontEnd, FrontEndDiagnostics
 from ._hypotheses import HypothesisProgram, check_proposals, choose, extra_starts, runners_up
 from ._score import held_filter, judge_frame
-from ._support import finger_of_link, support_confidence, unexplained_confidence, weakest_finger
+from ._support import finger_of_link, judge_weights, support_confidence, unexplained_confidence, weakest_finger
 
 __all__ = ["TrackState", "StepReport", "Tracker"]
 
@@ -204,15 +204,23 @@ class Tracker:
                        len(merit), t_score)
 
     def _scores(self, images, qs: np.ndarray, merit: np.ndarray, fe_state) -> np.ndarray | None:
-        """The front end's image score of the candidates that solved (0 for the others), or None."""
+        """The front end's image score of the candidates that solved (0 for the others), times
+        their finger support's judge weight (``support.judge_power``), or None when neither applies."""
         good = np.flatnonzero(merit >= 0)
         scores = self.frontend.score(images, qs[good], fe_state) if len(good) else None
+        if scores is not None:
+            scores = np.asarray(scores, float)
+            if scores.shape != good.shape or not np.all((scores >= 0) & (scores <= 1)):
+                raise InputError(f"{type(self.frontend).__name__}.score: expected {len(good)} scores in [0, 1] (one "
+                                 f"per candidate pose), got {np.array2string(scores, precision=3)}")
+        config = self.config.support
+        if config.judge_power > 0 and len(good):
+            measured = [self.frontend.support(images, q, fe_state, config.margin_px) for q in qs[good]]
+            if all(m is not None for m in measured):
+                weights = judge_weights([m.link_score for m in measured], self._finger, config.judge_power)
+                scores = weights if scores is None else scores * weights
         if scores is None:
             return None
-        scores = np.asarray(scores, float)
-        if scores.shape != good.shape or not np.all((scores >= 0) & (scores <= 1)):
-            raise InputError(f"{type(self.frontend).__name__}.score: expected {len(good)} scores in [0, 1] (one per "
-                             f"candidate pose), got {np.array2string(scores, precision=3)}")
         full = np.zeros(len(merit))
         full[good] = scores
         return full
