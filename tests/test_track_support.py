@@ -17,13 +17,13 @@ from jaxhand.track import (
     AbstractFrontEnd,
     ExactFrontEnd,
     ImageFrontEnd,
+    ImageSupport,
     SupportConfig,
     TrackConfig,
     Tracker,
     config_from_dict,
 )
 from jaxhand.track._support import (
-    ImageSupport,
     finger_of_link,
     judge_weights,
     largest_unexplained_px,

@@ -37,12 +37,12 @@ from ._frontend import (
 from ._presets import PRESETS
 from ._score import confidence_of, frame_score, judge_frame
 from ._sequence import accuracy_summary, frame_tip_error_px, loss_flag_quality, track_sequence
-from ._support import SupportConfig
+from ._support import ImageSupport, SupportConfig
 from ._tracker import StepReport, Tracker, TrackState
 
 __all__ = [
     "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig", "LandmarkConfig",
-    "SupportConfig", "TRACK_CONFIG_VERSION", "PRESETS",
+    "SupportConfig", "ImageSupport", "TRACK_CONFIG_VERSION", "PRESETS",
     "config_to_dict", "config_from_dict", "config_to_toml", "save_track_config", "load_track_config",
     "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd", "image_front_end",
     "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary", "frame_tip_error_px",

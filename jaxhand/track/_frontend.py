@@ -94,7 +94,7 @@ class AbstractFrontEnd(abc.ABC):
 
     def support(self, images: Sequence[np.ndarray | None], q: np.ndarray, state: Any, margin_px: int = 1
                 ) -> ImageSupport | None:
-        """The image's support of the pose ``q`` (:class:`~jaxhand.track._support.ImageSupport`:
+        """The image's support of the pose ``q`` (:class:`~jaxhand.track.ImageSupport`:
         per link, and the foreground it leaves unexplained beyond ``margin_px``), or None when the
         front end measures none (the default)."""
         return None
@@ -182,8 +182,8 @@ class ImageFrontEnd(AbstractFrontEnd):
 
     def support(self, images, q, state, margin_px: int = 1) -> ImageSupport:
         """Each link's :func:`jaxhand.score.score_silhouette` link score at ``q`` per camera and the
-        largest unexplained foreground blob (:func:`~jaxhand.track._support.largest_unexplained_px`),
-        on the score's foreground ("auto" where the score is off, as for the silhouette term)."""
+        largest 8-connected blob of foreground outside the silhouette grown by ``margin_px``, on
+        the score's foreground ("auto" where the score is off, as for the silhouette term)."""
         section = self._section()
         caps = capsules_from_model_batch(self.model, np.asarray(q, float).reshape(1, -1))[0]
         links, unexplained = [], 0
