@@ -43,7 +43,7 @@ from ..model import Model
 from ._convention import LandmarkMap
 from ._fit import BatchConfig, _as_float_landmarks, fit_landmarks_batch
 from ._residuals import LandmarkArgs, Landmarks, _dependence, landmark_residuals
-from ._sequence import SequenceConfig, _accel_weights, _unit_weights, sequence_coupling
+from ._sequence import SequenceConfig, _accel_weights, _unit_weights, rest_weights, sequence_coupling
 
 __all__ = ["joint_starts", "independent_blocks", "smoothest_paths", "block_costs", "START_FRACTIONS"]
 
@@ -148,18 +148,64 @@ def _choose(model, lmap, config, scale, Q, cost, coupled, H) -> np.ndarray:
     w = scale * np.asarray(_unit_weights(model, config, jnp.asarray(0.0).dtype))
     pip = np.asarray(sequence_coupling(model, config).pip_index, int)
     q = Q[:, 0].copy()
+    wr = rest_weights(model, config)
+    rest = (wr * (Q - np.asarray(model.q_default))) ** 2                       # (T, K, n_q)
+    H = H + np.diag(wr * wr)
     for block in independent_blocks(model, lmap):
         points = dep[:, block].any(axis=1)
-        unary = 0.5 * (cost[..., points].sum(-1) + coupled[..., np.isin(pip, block)].sum(-1))
-        path = _viterbi(unary, Q[..., block], w[block], H[..., block[:, None], block[None, :]])
-        q[:, block] = Q[np.arange(T), path][:, block]
+        unary = 0.5 * (cost[..., points].sum(-1) + coupled[..., np.isin(pip, block)].sum(-1)
+                       + rest[..., block].sum(-1))
+        keep = _distinct_index(Q[..., block])                      # (T, Kb): many starts share a fit
+        Hb = H[..., block[:, None], block[None, :]]
+        path = _viterbi(np.take_along_axis(unary, keep, 1), np.take_along_axis(Q[..., block], keep[..., None], 1),
+                        w[block], np.take_along_axis(Hb, keep[..., None, None], 1))
+        q[:, block] = Q[np.arange(T), keep[np.arange(T), path]][:, block]
     return q
+
+
+def _distinct_index(X: np.ndarray, tol: float = 1e-3) -> np.ndarray:
+    """(T, Kb) indices of each frame's distinct rows of X (T, K, m) (equal after rounding to
+    ``tol``), padded with the frame's first; Kb the most any frame has."""
+    rows = []
+    for x in X:
+        _, first = np.unique(np.round(x / tol), axis=0, return_index=True)
+        rows.append(np.sort(first))
+    Kb = max(len(r) for r in rows)
+    return np.stack([np.concatenate([r, np.full(Kb - len(r), r[0])]) for r in rows])
+
+
+def _distinct_rows(X: np.ndarray, tol: float) -> np.ndarray:
+    """X's rows with duplicates (equal after rounding to ``tol``) dropped, in first-seen order."""
+    _, first = np.unique(np.round(X / tol), axis=0, return_index=True)
+    return X[np.sort(first)]
+
+
+def carried_states(model: Model, lmap: LandmarkMap, Q: np.ndarray, offsets, tol: float = 1e-3) -> np.ndarray:
+    """(T, C, n_q) states offered at frame t: per independent block, the distinct candidate
+    states of the frames t + o (o in ``offsets``) of Q (T, K, n_q), unrefined. A branch whose
+    per-frame fits fall into the other one at most frames (no local minimum of one noisy
+    frame there) is still offered at every frame near one where a fit found it."""
+    T = Q.shape[0]
+    blocks = independent_blocks(model, lmap)
+    per_block = []
+    for block in blocks:
+        rows = []
+        for t in range(T):
+            src = [Q[t + o][:, block] for o in offsets if 0 <= t + o < T]
+            rows.append(_distinct_rows(np.concatenate(src), tol) if src else Q[t][:1, block])
+        per_block.append(rows)
+    C = max(len(x) for rows in per_block for x in rows)
+    out = np.repeat(Q[:, :1], C, axis=1)
+    for block, rows in zip(blocks, per_block):
+        for t, X in enumerate(rows):
+            out[t][:, block] = X[np.minimum(np.arange(C), len(X) - 1)]
+    return out
 
 
 def smoothest_paths(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkMap, *, candidates=None,
                     config: SequenceConfig | None = None, batch_config: BatchConfig | None = None,
                     fractions=START_FRACTIONS, draws: int = 16, rounds: int = 2,
-                    scales=(1.0,)) -> np.ndarray:
+                    scales=(1.0,), carry=()) -> np.ndarray:
     """(S, T, n_q) starts of a sequence fit, one per smoothness scale: per independent block of
     joints, the smoothest low-cost path through every frame's candidate fits (see the module
     docstring).
@@ -200,7 +246,16 @@ def smoothest_paths(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkM
     def choose(scale):
         return _choose(model, lmap, config, scale, *(np.concatenate(x, axis=1) for x in zip(*pool)))
 
+    def offer(S):                # (T, K, n_q) states as they are: point costs, DIP-PIP terms, J^T J
+        K = S.shape[1]
+        lmK = jax.tree_util.tree_map(lambda x: jnp.repeat(x, K, axis=0), lm)
+        cost, coupled, H = (np.asarray(x) for x in _point_terms(model, rig, lmap, coupling, lmK,
+                                                               jnp.asarray(S.reshape(T * K, model.n_q))))
+        pool.append((S, cost.reshape(T, K, 21), coupled.reshape(T, K, -1), H.reshape(T, K, model.n_q, model.n_q)))
+
     refine(starts)
+    if len(carry):
+        offer(carried_states(model, lmap, pool[0][0], carry))
     q = choose(scales[0])
     for _ in range(rounds):
         # the path's states at the frames before and after as starts: a branch one frame found
@@ -229,9 +284,10 @@ def block_costs(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkMap, 
     pip = np.asarray(coupling.pip_index, int)
     dep = _dependence(model, lmap)
     d1, d2 = np.diff(Q, axis=0) * w, np.diff(Q, 2, axis=0) * a
+    rest = (rest_weights(model, config) * (np.asarray(Q) - np.asarray(model.q_default))) ** 2
     out = []
     for block in independent_blocks(model, lmap):
         fingers = np.isin(pip, block)
         out.append(0.5 * (cost[:, dep[:, block].any(axis=1)].sum() + coupled[:, fingers].sum() + prior[fingers].sum()
-                          + np.sum(d1[:, block] ** 2) + np.sum(d2[:, block] ** 2)))
+                          + np.sum(d1[:, block] ** 2) + np.sum(d2[:, block] ** 2) + np.sum(rest[:, block])))
     return np.array(out)

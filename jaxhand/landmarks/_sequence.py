@@ -49,7 +49,7 @@ from ._convention import LandmarkMap, landmark_map
 from ._residuals import LandmarkArgs, Landmarks, landmark_residuals
 from ._shape import HandShape, apply_shape
 
-__all__ = ["SequenceConfig", "SequenceResult", "fit_sequence", "sequence_coupling"]
+__all__ = ["SequenceConfig", "SequenceResult", "fit_sequence", "sequence_coupling", "rest_weights"]
 
 
 def _f(x):
@@ -79,6 +79,10 @@ class SequenceConfig(eqx.Module):
         dip_pip_ratio_prior_px: traced. > 0: every finger's ratio is estimated, with this weight
             (px per unit of ratio) on its distance to ``dip_pip_ratio``; 0: the ratio is fixed.
             Static in effect: whether it is 0 decides the unknowns (read on the host).
+        rest_px_per_rad: traced. Weight of every joint angle's distance to the model's default
+            (rest) state, per frame (px per rad); 0: off. Weak next to the landmarks wherever they
+            see a joint, it decides between one camera's mirror branches that fit equally well
+            (a finger's flexion and abduction towards or away from the camera).
         scale_bounds: traced (2,). Scales are clipped into [lo, hi].
         offset_bound_mm: traced. Palm offsets are clipped into [-bound, bound] mm.
         ftol: traced, relative. Stop when an accepted step lowers the cost by <= ftol * cost.
@@ -95,6 +99,7 @@ class SequenceConfig(eqx.Module):
     dip_pip_px_per_rad: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
     dip_pip_ratio: Float[Array, ""] = eqx.field(converter=_f, default=DIP_PIP_RATIO)
     dip_pip_ratio_prior_px: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
+    rest_px_per_rad: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
     scale_bounds: Float[Array, " 2"] = eqx.field(converter=_f, default=(0.5, 2.0))
     offset_bound_mm: Float[Array, ""] = eqx.field(converter=_f, default=30.0)
     ftol: Float[Array, ""] = eqx.field(converter=_f, default=1e-9)
@@ -218,6 +223,7 @@ class _Problem(eqx.Module):
     landmarks: Landmarks          # leading frame axis
     theta0: Array
     coupling: DipPipCoupling      # weights in px per rad
+    rest: Array                   # (n_q,) rest prior weights (px per rad)
     n_ratios: int = eqx.field(static=True)     # estimated ratios at the end of theta (0: none)
 
 
@@ -237,6 +243,12 @@ def _accel_weights(model: Model, config: SequenceConfig, dtype):
     return jnp.where(is_len, config.accel_px_per_mm, config.accel_px_per_rad).astype(dtype)
 
 
+def rest_weights(model: Model, config: SequenceConfig) -> np.ndarray:
+    """(n_q,) weights of the rest prior: ``rest_px_per_rad`` on the joint angles, 0 on the base."""
+    joint = np.asarray(model.is_angle) & (np.arange(model.n_q) >= model.n_base_q)
+    return np.where(joint, float(config.rest_px_per_rad), 0.0)
+
+
 def _prior_weights(prob: _Problem, config: SequenceConfig, dtype):
     ratios = jnp.full((prob.n_ratios,), config.dip_pip_ratio_prior_px, dtype)
     if prob.shape is None:
@@ -253,7 +265,7 @@ def _frame_residuals(prob: _Problem, q, theta, lm):
     model = prob.model if prob.shape is None else apply_shape(prob.model, prob.shape, theta)
     r = landmark_residuals(q, LandmarkArgs(model=model, cameras=prob.cameras, lmap=prob.lmap, landmarks=lm))
     coupling = eqx.tree_at(lambda c: c.ratio, prob.coupling, _ratios(prob, theta))
-    return jnp.concatenate([r, coupling(q)])
+    return jnp.concatenate([r, coupling(q), prob.rest * (q - prob.model.q_default)])
 
 
 def _total_cost(prob, config, Q, theta):
@@ -414,5 +426,5 @@ def fit_sequence(model: Model, cameras, landmarks: Landmarks, q_init, *, shape: 
     n_ratios = len(coupling.fingers) if float(config.dip_pip_ratio_prior_px) > 0 else 0
     th = np.concatenate([th, np.full(n_ratios, float(config.dip_pip_ratio))])
     prob = _Problem(model=model, cameras=rig, lmap=lmap, shape=shape, landmarks=lm, theta0=jnp.asarray(th),
-                    coupling=coupling, n_ratios=n_ratios)
+                    coupling=coupling, rest=jnp.asarray(rest_weights(model, config), dtype), n_ratios=n_ratios)
     return _solve(prob, jnp.asarray(Q0), config)
