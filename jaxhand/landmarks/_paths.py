@@ -16,7 +16,10 @@ sequence solve a start that chooses the branch from the whole sequence:
 3. per block, the path through the frames' candidates that minimises the landmark cost of the
    block's points and its fingers' DIP-PIP term plus the first-difference smoothness term of
    :class:`~jaxhand.landmarks.SequenceConfig` (the sequence objective without its shape terms),
-   found by dynamic programming (Viterbi: O(frames x candidates^2) per block). The cost of a
+   found by dynamic programming (Viterbi: O(frames x candidates^2) per block, over each frame's
+   distinct candidates: most starts reach the same few fits). With the rest prior of
+   :class:`~jaxhand.landmarks.SequenceConfig` the cost also holds it, so that of two mirror
+   branches that fit alike the one nearer the rest pose wins, as in the sequence solve. The cost of a
    step between two candidates is the least smoothness plus data cost of two states near them,
    each candidate's data cost a quadratic about it (its Gauss-Newton matrix): along a direction
    the landmarks hardly see (a finger near its fold, seen by one camera) the fits scatter, and
@@ -174,38 +177,10 @@ def _distinct_index(X: np.ndarray, tol: float = 1e-3) -> np.ndarray:
     return np.stack([np.concatenate([r, np.full(Kb - len(r), r[0])]) for r in rows])
 
 
-def _distinct_rows(X: np.ndarray, tol: float) -> np.ndarray:
-    """X's rows with duplicates (equal after rounding to ``tol``) dropped, in first-seen order."""
-    _, first = np.unique(np.round(X / tol), axis=0, return_index=True)
-    return X[np.sort(first)]
-
-
-def carried_states(model: Model, lmap: LandmarkMap, Q: np.ndarray, offsets, tol: float = 1e-3) -> np.ndarray:
-    """(T, C, n_q) states offered at frame t: per independent block, the distinct candidate
-    states of the frames t + o (o in ``offsets``) of Q (T, K, n_q), unrefined. A branch whose
-    per-frame fits fall into the other one at most frames (no local minimum of one noisy
-    frame there) is still offered at every frame near one where a fit found it."""
-    T = Q.shape[0]
-    blocks = independent_blocks(model, lmap)
-    per_block = []
-    for block in blocks:
-        rows = []
-        for t in range(T):
-            src = [Q[t + o][:, block] for o in offsets if 0 <= t + o < T]
-            rows.append(_distinct_rows(np.concatenate(src), tol) if src else Q[t][:1, block])
-        per_block.append(rows)
-    C = max(len(x) for rows in per_block for x in rows)
-    out = np.repeat(Q[:, :1], C, axis=1)
-    for block, rows in zip(blocks, per_block):
-        for t, X in enumerate(rows):
-            out[t][:, block] = X[np.minimum(np.arange(C), len(X) - 1)]
-    return out
-
-
 def smoothest_paths(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkMap, *, candidates=None,
                     config: SequenceConfig | None = None, batch_config: BatchConfig | None = None,
                     fractions=START_FRACTIONS, draws: int = 16, rounds: int = 2,
-                    scales=(1.0,), carry=()) -> np.ndarray:
+                    scales=(1.0,)) -> np.ndarray:
     """(S, T, n_q) starts of a sequence fit, one per smoothness scale: per independent block of
     joints, the smoothest low-cost path through every frame's candidate fits (see the module
     docstring).
@@ -246,16 +221,7 @@ def smoothest_paths(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkM
     def choose(scale):
         return _choose(model, lmap, config, scale, *(np.concatenate(x, axis=1) for x in zip(*pool)))
 
-    def offer(S):                # (T, K, n_q) states as they are: point costs, DIP-PIP terms, J^T J
-        K = S.shape[1]
-        lmK = jax.tree_util.tree_map(lambda x: jnp.repeat(x, K, axis=0), lm)
-        cost, coupled, H = (np.asarray(x) for x in _point_terms(model, rig, lmap, coupling, lmK,
-                                                               jnp.asarray(S.reshape(T * K, model.n_q))))
-        pool.append((S, cost.reshape(T, K, 21), coupled.reshape(T, K, -1), H.reshape(T, K, model.n_q, model.n_q)))
-
     refine(starts)
-    if len(carry):
-        offer(carried_states(model, lmap, pool[0][0], carry))
     q = choose(scales[0])
     for _ in range(rounds):
         # the path's states at the frames before and after as starts: a branch one frame found

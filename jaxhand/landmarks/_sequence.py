@@ -18,6 +18,9 @@ Unknowns: ``Q`` (frames, n_q), one state per frame, and ``theta`` (p,), the shap
   ratio ``rho`` is an unknown shared by every frame (appended to ``theta``), pulled towards
   ``dip_pip_ratio`` by ``dip_pip_ratio_prior_px (rho - dip_pip_ratio)``: the hand's own coupling
   is measured from the sequence rather than assumed;
+- per frame, the rest prior ``r (q - q_default)`` on every joint angle with ``r`` =
+  ``rest_px_per_rad`` (off by default): of one camera's mirror branches, which fit the points
+  equally, it keeps the one nearer the rest pose;
 - a prior ``w_s (s - 1)`` on each scale and ``w_o o`` on each palm offset (mm), which keeps
   directions no landmark sees (and one camera's scale-depth ambiguity) determined.
 
@@ -114,7 +117,7 @@ class SequenceResult(eqx.Module):
         theta: (p,) the shape (empty without one).
         dip_pip_ratio: (fingers,) the DIP-PIP ratios used (estimated or as configured).
         cost: final total cost (px^2), ``start_cost`` the first.
-        data_cost: (frames,) landmark and DIP-PIP cost per frame at the result (px^2).
+        data_cost: (frames,) landmark, DIP-PIP and rest-prior cost per frame at the result (px^2).
         iterations: trials taken; converged: the cost rule fired.
     """
 
