@@ -17,9 +17,9 @@ sequence solve a start that chooses the branch from the whole sequence:
    block's points and its fingers' DIP-PIP term plus the first-difference smoothness term of
    :class:`~jaxhand.landmarks.SequenceConfig` (the sequence objective without its shape terms),
    found by dynamic programming (Viterbi: O(frames x candidates^2) per block, over each frame's
-   distinct candidates: most starts reach the same few fits). With the rest prior of
-   :class:`~jaxhand.landmarks.SequenceConfig` the cost also holds it, so that of two mirror
-   branches that fit alike the one nearer the rest pose wins, as in the sequence solve. The cost of a
+   distinct candidates: most starts reach the same few fits). With ``branch_rest_px_per_rad``
+   the cost also holds a prior towards the rest pose, so that of two mirror branches that fit
+   alike the one nearer rest wins (the sequence solve itself has no such term). The cost of a
    step between two candidates is the least smoothness plus data cost of two states near them,
    each candidate's data cost a quadratic about it (its Gauss-Newton matrix): along a direction
    the landmarks hardly see (a finger near its fold, seen by one camera) the fits scatter, and
@@ -238,7 +238,8 @@ def block_costs(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkMap, 
                 ratios) -> np.ndarray:
     """(blocks,) the sequence objective of :func:`~jaxhand.landmarks.fit_sequence` (no shape)
     split over :func:`independent_blocks`: each block's points, its fingers' DIP-PIP terms at the
-    ratios (fingers,) and their priors, and the smoothness of its entries, for states Q (T, n_q)."""
+    ratios (fingers,) and their priors, and the smoothness of its entries, for states Q (T, n_q);
+    plus the branch choice's rest prior (``branch_rest_px_per_rad``), the cost that picks a branch."""
     rig = as_rig(cameras)
     coupling = eqx.tree_at(lambda c: c.ratio, sequence_coupling(model, config), jnp.asarray(ratios, float))
     cost, coupled, _ = (np.asarray(x) for x in _point_terms(model, rig, lmap, coupling, _as_float_landmarks(landmarks),

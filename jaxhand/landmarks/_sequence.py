@@ -18,9 +18,6 @@ Unknowns: ``Q`` (frames, n_q), one state per frame, and ``theta`` (p,), the shap
   ratio ``rho`` is an unknown shared by every frame (appended to ``theta``), pulled towards
   ``dip_pip_ratio`` by ``dip_pip_ratio_prior_px (rho - dip_pip_ratio)``: the hand's own coupling
   is measured from the sequence rather than assumed;
-- per frame, the rest prior ``r (q - q_default)`` on every joint angle with ``r`` =
-  ``rest_px_per_rad`` (off by default): of one camera's mirror branches, which fit the points
-  equally, it keeps the one nearer the rest pose;
 - a prior ``w_s (s - 1)`` on each scale and ``w_o o`` on each palm offset (mm), which keeps
   directions no landmark sees (and one camera's scale-depth ambiguity) determined.
 
@@ -82,10 +79,12 @@ class SequenceConfig(eqx.Module):
         dip_pip_ratio_prior_px: traced. > 0: every finger's ratio is estimated, with this weight
             (px per unit of ratio) on its distance to ``dip_pip_ratio``; 0: the ratio is fixed.
             Static in effect: whether it is 0 decides the unknowns (read on the host).
-        rest_px_per_rad: traced. Weight of every joint angle's distance to the model's default
-            (rest) state, per frame (px per rad); 0: off. Weak next to the landmarks wherever they
-            see a joint, it decides between one camera's mirror branches that fit equally well
-            (a finger's flexion and abduction towards or away from the camera).
+        branch_rest_px_per_rad: read on the host. Weight (px per rad) of every joint angle's
+            distance to the model's default (rest) state per frame in the choice of branch only
+            (the paths of :func:`~jaxhand.landmarks.smoothest_paths` and the per-finger pick of
+            :func:`~jaxhand.landmarks.block_costs`), not in this solve: of one camera's mirror
+            branches that fit the points alike it picks the one nearer rest, without biasing
+            the angles the landmarks do see; 0: off.
         scale_bounds: traced (2,). Scales are clipped into [lo, hi].
         offset_bound_mm: traced. Palm offsets are clipped into [-bound, bound] mm.
         ftol: traced, relative. Stop when an accepted step lowers the cost by <= ftol * cost.
@@ -102,7 +101,7 @@ class SequenceConfig(eqx.Module):
     dip_pip_px_per_rad: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
     dip_pip_ratio: Float[Array, ""] = eqx.field(converter=_f, default=DIP_PIP_RATIO)
     dip_pip_ratio_prior_px: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
-    rest_px_per_rad: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
+    branch_rest_px_per_rad: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
     scale_bounds: Float[Array, " 2"] = eqx.field(converter=_f, default=(0.5, 2.0))
     offset_bound_mm: Float[Array, ""] = eqx.field(converter=_f, default=30.0)
     ftol: Float[Array, ""] = eqx.field(converter=_f, default=1e-9)
@@ -117,7 +116,7 @@ class SequenceResult(eqx.Module):
         theta: (p,) the shape (empty without one).
         dip_pip_ratio: (fingers,) the DIP-PIP ratios used (estimated or as configured).
         cost: final total cost (px^2), ``start_cost`` the first.
-        data_cost: (frames,) landmark, DIP-PIP and rest-prior cost per frame at the result (px^2).
+        data_cost: (frames,) landmark and DIP-PIP cost per frame at the result (px^2).
         iterations: trials taken; converged: the cost rule fired.
     """
 
@@ -226,7 +225,6 @@ class _Problem(eqx.Module):
     landmarks: Landmarks          # leading frame axis
     theta0: Array
     coupling: DipPipCoupling      # weights in px per rad
-    rest: Array                   # (n_q,) rest prior weights (px per rad)
     n_ratios: int = eqx.field(static=True)     # estimated ratios at the end of theta (0: none)
 
 
@@ -247,9 +245,10 @@ def _accel_weights(model: Model, config: SequenceConfig, dtype):
 
 
 def rest_weights(model: Model, config: SequenceConfig) -> np.ndarray:
-    """(n_q,) weights of the rest prior: ``rest_px_per_rad`` on the joint angles, 0 on the base."""
+    """(n_q,) weights of the branch choice's rest prior: ``branch_rest_px_per_rad`` on the joint
+    angles, 0 on the base."""
     joint = np.asarray(model.is_angle) & (np.arange(model.n_q) >= model.n_base_q)
-    return np.where(joint, float(config.rest_px_per_rad), 0.0)
+    return np.where(joint, float(config.branch_rest_px_per_rad), 0.0)
 
 
 def _prior_weights(prob: _Problem, config: SequenceConfig, dtype):
@@ -268,7 +267,7 @@ def _frame_residuals(prob: _Problem, q, theta, lm):
     model = prob.model if prob.shape is None else apply_shape(prob.model, prob.shape, theta)
     r = landmark_residuals(q, LandmarkArgs(model=model, cameras=prob.cameras, lmap=prob.lmap, landmarks=lm))
     coupling = eqx.tree_at(lambda c: c.ratio, prob.coupling, _ratios(prob, theta))
-    return jnp.concatenate([r, coupling(q), prob.rest * (q - prob.model.q_default)])
+    return jnp.concatenate([r, coupling(q)])
 
 
 def _total_cost(prob, config, Q, theta):
@@ -429,5 +428,5 @@ def fit_sequence(model: Model, cameras, landmarks: Landmarks, q_init, *, shape: 
     n_ratios = len(coupling.fingers) if float(config.dip_pip_ratio_prior_px) > 0 else 0
     th = np.concatenate([th, np.full(n_ratios, float(config.dip_pip_ratio))])
     prob = _Problem(model=model, cameras=rig, lmap=lmap, shape=shape, landmarks=lm, theta0=jnp.asarray(th),
-                    coupling=coupling, rest=jnp.asarray(rest_weights(model, config), dtype), n_ratios=n_ratios)
+                    coupling=coupling, n_ratios=n_ratios)
     return _solve(prob, jnp.asarray(Q0), config)
