@@ -55,13 +55,12 @@ def _fit(name, cams, frames, seed, config=CONFIG):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("name", "frames", "bound"), [("index_over_middle", 40, 4.0), ("fast_spread", 45, 4.5)])
+@pytest.mark.parametrize(("name", "frames", "bound"), [("index_over_middle", 40, 4.0), ("fast_spread", 45, 4.0)])
 def test_one_camera_sequence_fit(name, frames, bound):
-    # The issue's bound is <= 4 deg mean over the moving joints with one camera. index_over_middle's
-    # first 40 frames meet it. fast_spread meets it with the benchmark's noise draw (3.86 deg;
-    # 5.03 before the DIP-PIP term and the paths' Gauss-Newton step cost, benchmarks/README.md,
-    # 2026-12-02, second pass) but MISSES it with this test's draw (seed 1: 4.37 deg), so the
-    # bound here guards what is reached: the branch choice still depends on the noise.
+    # The issue's bound: <= 4 deg mean over the moving joints with one camera. index_over_middle's
+    # first 40 frames meet it. fast_spread with this test's noise draw (seed 1) missed it before
+    # the branch choice's rest prior (4.37 deg) and meets it, narrowly, with it (3.97;
+    # benchmarks/README.md, 2026-12-02, third pass).
     err, _, _ = _fit(name, [0], frames, seed=1)
     assert err.mean() <= bound
 
@@ -84,7 +83,8 @@ def test_thumb_opposition_within_4_deg_with_the_branch_rest_prior():
     # camera a resting finger's MCP has a mirror branch (flexed ~25 deg and abducted) that fits
     # its points as well. The rest prior of the branch choice picks the straight one; the
     # little finger's MCP, the worst joint without it (12.8 deg, benchmarks/README.md,
-    # 2026-12-02), must then be within a few degrees.
+    # 2026-12-02), must then be within a few degrees. With this draw: 5.89 deg without the
+    # prior, 2.29 with it.
     err, fit, seq = _fit("thumb_opposition", [0], 120, seed=1)
     assert err.mean() <= 4.0
     names = np.array(seq.model.q_names)[(np.ptp(seq.truth.q, axis=0) > 1e-6) & np.asarray(seq.model.is_angle)]
