@@ -13,7 +13,7 @@ truth moves) and the mean over all joints, the same mean for the start the seque
 from, the median distance (px) of the fitted points to the noisy input points, and frames/s of
 the whole fit (first call: compilation included, as a user's run).
 
-    PYTHONPATH=. .venv/bin/python benchmarks/landmarks_devset.py [--only open_close] [--frames 40]
+    PYTHONPATH=. .venv/bin/python benchmarks/landmarks_devset.py [--only open_close] [--frames 40] [--seed 1]
 """
 
 from __future__ import annotations
@@ -89,13 +89,14 @@ def main() -> None:
     ap.add_argument("--dip-pip-ratio", type=float, default=2.0 / 3.0, help="SequenceConfig.dip_pip_ratio")
     ap.add_argument("--dip-pip-prior", type=float, default=20.0,
                     help="SequenceConfig.dip_pip_ratio_prior_px (> 0: the ratio is estimated)")
+    ap.add_argument("--rest", type=float, default=3.0, help="SequenceConfig.branch_rest_px_per_rad (0: off)")
     ap.add_argument("--steps", type=int, default=300, help="SequenceConfig.max_steps")
     ap.add_argument("--init", default="auto", help="fit_landmark_sequence's init")
     ap.add_argument("--json", default="landmarks_devset.json", help="file in benchmarks/results/ ('' : none)")
     args = ap.parse_args()
     config = SequenceConfig(smooth_px_per_rad=args.smooth, accel_px_per_rad=args.accel, max_steps=args.steps,
                             dip_pip_px_per_rad=args.dip_pip, dip_pip_ratio=args.dip_pip_ratio,
-                            dip_pip_ratio_prior_px=args.dip_pip_prior)
+                            dip_pip_ratio_prior_px=args.dip_pip_prior, branch_rest_px_per_rad=args.rest)
     load0 = load_average()
     runs = []
     for name in (args.only.split(",") if args.only else SEQUENCES):
@@ -116,7 +117,8 @@ def main() -> None:
         write_json({"noise_px": args.noise_px, "seed": args.seed, "tips": "cap_centre", "init": args.init,
                     "config": {"smooth_px_per_rad": args.smooth, "accel_px_per_rad": args.accel,
                                "max_steps": args.steps, "dip_pip_px_per_rad": args.dip_pip,
-                               "dip_pip_ratio": args.dip_pip_ratio, "dip_pip_ratio_prior_px": args.dip_pip_prior},
+                               "dip_pip_ratio": args.dip_pip_ratio, "dip_pip_ratio_prior_px": args.dip_pip_prior,
+                               "branch_rest_px_per_rad": args.rest},
                     "frames_per_s_note": "first call per run, compilation included",
                     "runs": runs, "environment": environment(),
                     "load_average": {"start": load0, "end": load_average()}}, RESULTS / args.json)

@@ -36,30 +36,31 @@ def test_cap_centre_tips_put_all_21_points_on_the_truth():
 
 
 # benchmarks/landmarks_devset.py's settings: the DIP-PIP term at 2 px (the noise) per 10 deg,
-# each finger's ratio estimated with a prior of 20 px per unit towards 2/3
-CONFIG = SequenceConfig(smooth_px_per_rad=30.0, max_steps=300, dip_pip_px_per_rad=11.5, dip_pip_ratio_prior_px=20.0)
+# each finger's ratio estimated with a prior of 20 px per unit towards 2/3, and the branch
+# choice's rest prior at 3 px per rad
+CONFIG = SequenceConfig(smooth_px_per_rad=30.0, max_steps=300, dip_pip_px_per_rad=11.5, dip_pip_ratio_prior_px=20.0,
+                        branch_rest_px_per_rad=3.0)
 
 
-def _fit(name, cams, frames, seed):
+def _fit(name, cams, frames, seed, config=CONFIG):
     seq = load_devset(DEVSET / name)
     rng = np.random.default_rng(seed)
     px = seq.truth.points_px[cams, :frames] + rng.normal(0.0, 2.0, seq.truth.points_px[cams, :frames].shape)
     m = seq.model
     fit = fit_landmark_sequence(m, tuple(seq.cameras[c] for c in cams), make_landmarks(np.moveaxis(px, 0, 1)),
-                                shape=None, lmap=landmark_map(m, tips="cap_centre"), config=CONFIG)
+                                shape=None, lmap=landmark_map(m, tips="cap_centre"), config=config)
     q_true = seq.truth.q[:frames]
     moving = (np.ptp(q_true, axis=0) > 1e-6) & np.asarray(m.is_angle)
     return np.degrees(np.abs(fit.q - q_true))[:, moving], fit, seq
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("name", "frames", "bound"), [("index_over_middle", 40, 4.0), ("fast_spread", 45, 4.5)])
+@pytest.mark.parametrize(("name", "frames", "bound"), [("index_over_middle", 40, 4.0), ("fast_spread", 45, 4.0)])
 def test_one_camera_sequence_fit(name, frames, bound):
-    # The issue's bound is <= 4 deg mean over the moving joints with one camera. index_over_middle's
-    # first 40 frames meet it. fast_spread meets it with the benchmark's noise draw (3.86 deg;
-    # 5.03 before the DIP-PIP term and the paths' Gauss-Newton step cost, benchmarks/README.md,
-    # 2026-12-02, second pass) but MISSES it with this test's draw (seed 1: 4.37 deg), so the
-    # bound here guards what is reached: the branch choice still depends on the noise.
+    # The issue's bound: <= 4 deg mean over the moving joints with one camera. index_over_middle's
+    # first 40 frames meet it. fast_spread with this test's noise draw (seed 1) missed it before
+    # the branch choice's rest prior (4.37 deg) and meets it, narrowly, with it (3.97;
+    # benchmarks/README.md, 2026-12-02, third pass).
     err, _, _ = _fit(name, [0], frames, seed=1)
     assert err.mean() <= bound
 
@@ -74,3 +75,17 @@ def test_two_camera_sequence_fit_within_1_5_deg_and_the_hands_dip_pip_ratio():
     assert err.mean() <= 1.5
     ratio = np.asarray(fit.result.dip_pip_ratio)
     assert ratio.shape == (4,) and np.all(np.abs(ratio - 0.53) < 0.1) and np.mean(ratio) < 0.6
+
+
+@pytest.mark.slow
+def test_thumb_opposition_within_4_deg_with_the_branch_rest_prior():
+    # Each finger flexes to meet the thumb while the others rest straight; seen by this one
+    # camera a resting finger's MCP has a mirror branch (flexed ~25 deg and abducted) that fits
+    # its points as well. The rest prior of the branch choice picks the straight one; the
+    # little finger's MCP, the worst joint without it (12.8 deg, benchmarks/README.md,
+    # 2026-12-02), must then be within a few degrees. With this draw: 5.89 deg without the
+    # prior, 2.29 with it.
+    err, fit, seq = _fit("thumb_opposition", [0], 120, seed=1)
+    assert err.mean() <= 4.0
+    names = np.array(seq.model.q_names)[(np.ptp(seq.truth.q, axis=0) > 1e-6) & np.asarray(seq.model.is_angle)]
+    assert err[:, list(names).index("little_mcp_flex")].mean() <= 6.0

@@ -82,3 +82,58 @@ def test_batched_fit_with_the_dip_pip_term_is_stationary():
     plain = np.asarray(fit_landmarks_batch(m, cam, lm, q_true[None]).q[0])
     gap = np.abs(np.asarray(coupling(q))) / 30.0
     assert np.all(gap <= np.abs(np.asarray(coupling(plain))) / 30.0 + 1e-9) and gap.sum() > 0
+
+
+def _devset_model():
+    from pathlib import Path
+
+    from jaxhand.io import load_devset
+
+    seq = load_devset(Path(__file__).resolve().parent.parent / "data" / "mujoco" / "thumb_opposition")
+    return seq, seq.model, landmark_map(seq.model, tips="cap_centre")
+
+
+def test_branch_rest_prior_picks_the_mirror_branch_nearer_rest():
+    # Two candidates per frame for every finger: the rest pose and a "mirror" 25 deg flexed and
+    # 13 deg abducted at the base joint that fits a little better (rest: 4 points of 0.05 px^2
+    # each, halved, 0.1 px^2 per frame more). Without the prior the Viterbi keeps the better
+    # fit; 3 px per rad towards rest makes the rest branch win (0.5 * 9 * (0.44^2 + 0.23^2)
+    # ~ 1.1 px^2 per frame against 0.1), in every finger.
+    from jaxhand.landmarks import SequenceConfig
+    from jaxhand.landmarks._paths import _choose
+
+    _, m, lmap = _devset_model()
+    T, n = 6, m.n_q
+    names = list(m.q_names)
+    rest = np.asarray(m.q_default, float)
+    mirror = rest.copy()
+    for f in ("thumb_cmc", "index_mcp", "middle_mcp", "ring_mcp", "little_mcp"):
+        mirror[names.index(f + "_flex")] += np.radians(25.0)
+        mirror[names.index(f + "_abd")] -= np.radians(13.0)
+    Q = np.broadcast_to(np.stack([rest, mirror]), (T, 2, n)).copy()
+    cost = np.zeros((T, 2, 21))
+    cost[:, 0] = 0.05
+    coupled = np.zeros((T, 2, 4))
+    H = np.broadcast_to(np.eye(n) * 1e4, (T, 2, n, n))
+    plain = _choose(m, lmap, SequenceConfig(smooth_px_per_rad=30.0), 1.0, Q, cost, coupled, H)
+    prior = _choose(m, lmap, SequenceConfig(smooth_px_per_rad=30.0, branch_rest_px_per_rad=3.0), 1.0, Q, cost,
+                    coupled, H)
+    np.testing.assert_allclose(plain, Q[:, 1])
+    np.testing.assert_allclose(prior, Q[:, 0])
+
+
+def test_block_costs_add_the_branch_rest_prior_per_finger():
+    from jaxhand.landmarks import SequenceConfig, block_costs, independent_blocks
+
+    seq, m, lmap = _devset_model()
+    T = 3
+    Q = np.asarray(seq.truth.q[40:40 + T])
+    lm = make_landmarks(np.moveaxis(seq.truth.points_px[:1, 40:40 + T], 0, 1))
+    ratios = np.full(4, 0.6)
+    plain, with_prior = (block_costs(m, seq.cameras[0], lm, lmap, SequenceConfig(
+        smooth_px_per_rad=30.0, dip_pip_px_per_rad=11.5, branch_rest_px_per_rad=r), Q, ratios) for r in (0.0, 3.0))
+    joint = np.asarray(m.is_angle) & (np.arange(m.n_q) >= m.n_base_q)
+    d = np.where(joint, Q - np.asarray(m.q_default), 0.0)
+    expect = [0.5 * 9.0 * np.sum(d[:, b] ** 2) for b in independent_blocks(m, lmap)]
+    np.testing.assert_allclose(with_prior - plain, expect, rtol=1e-9, atol=1e-9)
+    assert min(expect) > 0

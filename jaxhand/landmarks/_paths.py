@@ -16,7 +16,10 @@ sequence solve a start that chooses the branch from the whole sequence:
 3. per block, the path through the frames' candidates that minimises the landmark cost of the
    block's points and its fingers' DIP-PIP term plus the first-difference smoothness term of
    :class:`~jaxhand.landmarks.SequenceConfig` (the sequence objective without its shape terms),
-   found by dynamic programming (Viterbi: O(frames x candidates^2) per block). The cost of a
+   found by dynamic programming (Viterbi: O(frames x candidates^2) per block, over each frame's
+   distinct candidates: most starts reach the same few fits). With ``branch_rest_px_per_rad``
+   the cost also holds a prior towards the rest pose, so that of two mirror branches that fit
+   alike the one nearer rest wins (the sequence solve itself has no such term). The cost of a
    step between two candidates is the least smoothness plus data cost of two states near them,
    each candidate's data cost a quadratic about it (its Gauss-Newton matrix): along a direction
    the landmarks hardly see (a finger near its fold, seen by one camera) the fits scatter, and
@@ -43,7 +46,7 @@ from ..model import Model
 from ._convention import LandmarkMap
 from ._fit import BatchConfig, _as_float_landmarks, fit_landmarks_batch
 from ._residuals import LandmarkArgs, Landmarks, _dependence, landmark_residuals
-from ._sequence import SequenceConfig, _accel_weights, _unit_weights, sequence_coupling
+from ._sequence import SequenceConfig, _accel_weights, _unit_weights, rest_weights, sequence_coupling
 
 __all__ = ["joint_starts", "independent_blocks", "smoothest_paths", "block_costs", "START_FRACTIONS"]
 
@@ -148,12 +151,30 @@ def _choose(model, lmap, config, scale, Q, cost, coupled, H) -> np.ndarray:
     w = scale * np.asarray(_unit_weights(model, config, jnp.asarray(0.0).dtype))
     pip = np.asarray(sequence_coupling(model, config).pip_index, int)
     q = Q[:, 0].copy()
+    wr = rest_weights(model, config)
+    rest = (wr * (Q - np.asarray(model.q_default))) ** 2                       # (T, K, n_q)
+    H = H + np.diag(wr * wr)
     for block in independent_blocks(model, lmap):
         points = dep[:, block].any(axis=1)
-        unary = 0.5 * (cost[..., points].sum(-1) + coupled[..., np.isin(pip, block)].sum(-1))
-        path = _viterbi(unary, Q[..., block], w[block], H[..., block[:, None], block[None, :]])
-        q[:, block] = Q[np.arange(T), path][:, block]
+        unary = 0.5 * (cost[..., points].sum(-1) + coupled[..., np.isin(pip, block)].sum(-1)
+                       + rest[..., block].sum(-1))
+        keep = _distinct_index(Q[..., block])                      # (T, Kb): many starts share a fit
+        Hb = H[..., block[:, None], block[None, :]]
+        path = _viterbi(np.take_along_axis(unary, keep, 1), np.take_along_axis(Q[..., block], keep[..., None], 1),
+                        w[block], np.take_along_axis(Hb, keep[..., None, None], 1))
+        q[:, block] = Q[np.arange(T), keep[np.arange(T), path]][:, block]
     return q
+
+
+def _distinct_index(X: np.ndarray, tol: float = 1e-3) -> np.ndarray:
+    """(T, Kb) indices of each frame's distinct rows of X (T, K, m) (equal after rounding to
+    ``tol``), padded with the frame's first; Kb the most any frame has."""
+    rows = []
+    for x in X:
+        _, first = np.unique(np.round(x / tol), axis=0, return_index=True)
+        rows.append(np.sort(first))
+    Kb = max(len(r) for r in rows)
+    return np.stack([np.concatenate([r, np.full(Kb - len(r), r[0])]) for r in rows])
 
 
 def smoothest_paths(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkMap, *, candidates=None,
@@ -217,7 +238,8 @@ def block_costs(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkMap, 
                 ratios) -> np.ndarray:
     """(blocks,) the sequence objective of :func:`~jaxhand.landmarks.fit_sequence` (no shape)
     split over :func:`independent_blocks`: each block's points, its fingers' DIP-PIP terms at the
-    ratios (fingers,) and their priors, and the smoothness of its entries, for states Q (T, n_q)."""
+    ratios (fingers,) and their priors, and the smoothness of its entries, for states Q (T, n_q);
+    plus the branch choice's rest prior (``branch_rest_px_per_rad``), the cost that picks a branch."""
     rig = as_rig(cameras)
     coupling = eqx.tree_at(lambda c: c.ratio, sequence_coupling(model, config), jnp.asarray(ratios, float))
     cost, coupled, _ = (np.asarray(x) for x in _point_terms(model, rig, lmap, coupling, _as_float_landmarks(landmarks),
@@ -229,9 +251,10 @@ def block_costs(model: Model, cameras, landmarks: Landmarks, lmap: LandmarkMap, 
     pip = np.asarray(coupling.pip_index, int)
     dep = _dependence(model, lmap)
     d1, d2 = np.diff(Q, axis=0) * w, np.diff(Q, 2, axis=0) * a
+    rest = (rest_weights(model, config) * (np.asarray(Q) - np.asarray(model.q_default))) ** 2
     out = []
     for block in independent_blocks(model, lmap):
         fingers = np.isin(pip, block)
         out.append(0.5 * (cost[:, dep[:, block].any(axis=1)].sum() + coupled[:, fingers].sum() + prior[fingers].sum()
-                          + np.sum(d1[:, block] ** 2) + np.sum(d2[:, block] ** 2)))
+                          + np.sum(d1[:, block] ** 2) + np.sum(d2[:, block] ** 2) + np.sum(rest[:, block])))
     return np.array(out)

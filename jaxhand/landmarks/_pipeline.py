@@ -17,9 +17,10 @@ Steps of :func:`fit_landmark_sequence`:
    whole sequence, not from frame 0;
 3. :func:`~jaxhand.landmarks.fit_sequence` over all frames from each path, with the temporal
    smoothness term and (with ``shape``) one hand shape shared by every frame. With several
-   paths, each block keeps the solve of least cost (:func:`~jaxhand.landmarks.block_costs`) and
-   one more solve starts from these blocks together (with a shape, which couples the blocks,
-   the solve of least total cost is kept).
+   paths, each block keeps the solve of least cost (:func:`~jaxhand.landmarks.block_costs`, with
+   the branch choice's rest prior of the configuration) and one more solve starts from these
+   blocks together (with a shape, which couples the blocks, the solve of least total cost is
+   kept).
 """
 
 from __future__ import annotations

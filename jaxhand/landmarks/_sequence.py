@@ -49,7 +49,7 @@ from ._convention import LandmarkMap, landmark_map
 from ._residuals import LandmarkArgs, Landmarks, landmark_residuals
 from ._shape import HandShape, apply_shape
 
-__all__ = ["SequenceConfig", "SequenceResult", "fit_sequence", "sequence_coupling"]
+__all__ = ["SequenceConfig", "SequenceResult", "fit_sequence", "sequence_coupling", "rest_weights"]
 
 
 def _f(x):
@@ -79,6 +79,12 @@ class SequenceConfig(eqx.Module):
         dip_pip_ratio_prior_px: traced. > 0: every finger's ratio is estimated, with this weight
             (px per unit of ratio) on its distance to ``dip_pip_ratio``; 0: the ratio is fixed.
             Static in effect: whether it is 0 decides the unknowns (read on the host).
+        branch_rest_px_per_rad: read on the host. Weight (px per rad) of every joint angle's
+            distance to the model's default (rest) state per frame in the choice of branch only
+            (the paths of :func:`~jaxhand.landmarks.smoothest_paths` and the per-finger pick of
+            :func:`~jaxhand.landmarks.block_costs`), not in this solve: of one camera's mirror
+            branches that fit the points alike it picks the one nearer rest, without biasing
+            the angles the landmarks do see; 0: off.
         scale_bounds: traced (2,). Scales are clipped into [lo, hi].
         offset_bound_mm: traced. Palm offsets are clipped into [-bound, bound] mm.
         ftol: traced, relative. Stop when an accepted step lowers the cost by <= ftol * cost.
@@ -95,6 +101,7 @@ class SequenceConfig(eqx.Module):
     dip_pip_px_per_rad: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
     dip_pip_ratio: Float[Array, ""] = eqx.field(converter=_f, default=DIP_PIP_RATIO)
     dip_pip_ratio_prior_px: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
+    branch_rest_px_per_rad: Float[Array, ""] = eqx.field(converter=_f, default=0.0)
     scale_bounds: Float[Array, " 2"] = eqx.field(converter=_f, default=(0.5, 2.0))
     offset_bound_mm: Float[Array, ""] = eqx.field(converter=_f, default=30.0)
     ftol: Float[Array, ""] = eqx.field(converter=_f, default=1e-9)
@@ -235,6 +242,13 @@ def _unit_weights(model: Model, config: SequenceConfig, dtype):
 def _accel_weights(model: Model, config: SequenceConfig, dtype):
     is_len = np.array([k == "length" for k in model.q_kinds])
     return jnp.where(is_len, config.accel_px_per_mm, config.accel_px_per_rad).astype(dtype)
+
+
+def rest_weights(model: Model, config: SequenceConfig) -> np.ndarray:
+    """(n_q,) weights of the branch choice's rest prior: ``branch_rest_px_per_rad`` on the joint
+    angles, 0 on the base."""
+    joint = np.asarray(model.is_angle) & (np.arange(model.n_q) >= model.n_base_q)
+    return np.where(joint, float(config.branch_rest_px_per_rad), 0.0)
 
 
 def _prior_weights(prob: _Problem, config: SequenceConfig, dtype):
