@@ -114,9 +114,9 @@ def _fit(edge_px, edge_ok, rows, *, tau_px, min_inliers, det_eps, single_edge, m
     weight = (share if weight_by_visibility else jnp.ones_like(share)) * jnp.where(single, single_edge_weight, 1.0)
     lines = jnp.where(valid[:, None], lines, jnp.array([1.0, 0.0, 0.0]))
     L = len(lines)
-    return jnp.concatenate([lines, valid[:, None], jnp.where(valid, weight, 0.0)[:, None],
-                            _line_params(p, v).reshape(L, 6), ok, inliers.reshape(L, -1),
-                            (single & valid)[:, None], p_ax, v_ax], -1).astype(float)
+    parts = [lines, valid[:, None], jnp.where(valid, weight, 0.0)[:, None], _line_params(p, v).reshape(L, 6), ok,
+             inliers.reshape(L, -1), (single & valid)[:, None], p_ax, v_ax]
+    return jnp.concatenate([a.astype(float) for a in parts], -1)
 
 
 def fit_rows(edge_px: np.ndarray, edge_ok: np.ndarray, mid: np.ndarray, radius_px: np.ndarray,

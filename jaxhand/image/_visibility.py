@@ -206,7 +206,7 @@ def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.nda
     # GEOS takes the hull of the coordinates in their order whatever the geometry type; a line
     # string is built straight from the array (a multipoint first makes one Point per vertex).
     hulls = shapely.convex_hull(shapely.linestrings(cloud))
-    hulls = _simplify_convex(hulls, simplify_px) if simplify_px > 0 else hulls
+    hulls = shapely.simplify(hulls, simplify_px) if simplify_px > 0 else hulls
     return np.where(ok, hulls, _EMPTY) if not ok.all() else hulls
 
 
@@ -217,17 +217,6 @@ def _unit_circle(k: int) -> np.ndarray:
     circle = np.stack([np.cos(a), np.sin(a)], -1)
     circle.setflags(write=False)
     return circle
-
-
-def _simplify_convex(hulls: np.ndarray, tolerance: float) -> np.ndarray:
-    """``shapely.simplify(hulls, tolerance)`` for convex polygons by plain Douglas-Peucker: a shortcut
-    between vertices of a convex ring crosses no other edge, so the topology-preserving variant keeps
-    the same vertices; a ring that plain Douglas-Peucker collapses is simplified the slow way."""
-    out = shapely.simplify(hulls, tolerance, preserve_topology=False)
-    bad = shapely.get_num_coordinates(out) < 4
-    if bad.any():
-        out[bad] = shapely.simplify(hulls[bad], tolerance)
-    return out
 
 
 def _pills(start_px, end_px, radius_start, radius_end, config: VisibilityConfig) -> np.ndarray:
