@@ -57,6 +57,7 @@ from functools import partial  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
+import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 import shapely  # noqa: E402
@@ -95,7 +96,8 @@ OCCLUDED_SHARE = (0.3, 0.95)
 def bench_environment() -> dict:
     """``_common.environment`` with this benchmark's extras: one thread, OpenCV, Shapely, jaxhand."""
     env = environment(watched=("jaxhand/image", "benchmarks/features.py"))
-    env.update(threads=1, opencv=cv2.__version__, shapely=shapely.__version__, jaxhand=jh.__version__)
+    env.update(threads=1, opencv=cv2.__version__, shapely=shapely.__version__, jaxhand=jh.__version__,
+               async_dispatch=bool(jax.config.read("jax_cpu_enable_async_dispatch")))
     return env
 
 
@@ -488,7 +490,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=None, help=f"JSON path (default {DEFAULT_OUT.relative_to(REPO)})")
     parser.add_argument("--vs-reference", action="store_true",
                         help=f"only the front end vs its reference copy (JSON: {VS_REFERENCE_OUT.relative_to(REPO)})")
+    parser.add_argument("--sync-dispatch", action="store_true",
+                        help="JAX's CPU calls on the calling thread (jaxhand.enable_sync_dispatch, as the CLI runs)")
     args = parser.parse_args(argv)
+    if args.sync_dispatch:
+        jh.enable_sync_dispatch()
     cv2.setNumThreads(1)
     env = bench_environment()
     print(f"feature benchmark: {env['cpu']} ({env['cpu_count']} cores, load {env['load_average_1min_start']:.1f}), "
