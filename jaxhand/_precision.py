@@ -12,7 +12,7 @@ import jax
 
 from ._errors import InputError
 
-__all__ = ["enable_x64", "require_x64", "x64_enabled"]
+__all__ = ["enable_x64", "enable_sync_dispatch", "require_x64", "x64_enabled"]
 
 
 def enable_x64() -> None:
@@ -20,6 +20,13 @@ def enable_x64() -> None:
     Jacobian checks against finite differences and cost tolerances of 1e-10 need double
     precision. Call it once, before building models or arrays; the CLI calls it itself."""
     jax.config.update("jax_enable_x64", True)
+
+
+def enable_sync_dispatch() -> None:
+    """Run JAX's CPU computations on the calling thread (``jax_cpu_enable_async_dispatch`` off) for
+    the whole process: a tracker converts every small compiled call's result to NumPy at once, so
+    handing each call to a worker thread and waiting only adds CPU time. Opt-in, like :func:`enable_x64`."""
+    jax.config.update("jax_cpu_enable_async_dispatch", False)
 
 
 def x64_enabled() -> bool:

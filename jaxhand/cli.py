@@ -18,7 +18,7 @@ import warnings
 from pathlib import Path
 
 from ._errors import InputError, JaxhandError, JaxhandWarning
-from ._precision import enable_x64
+from ._precision import enable_sync_dispatch, enable_x64
 
 __all__ = ["main"]
 
@@ -70,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     same clean way (the command's writers keep every finished frame).
     """
     enable_x64()   # the CLI is a whole program: it may set the process-wide float64 mode jaxhand needs
+    enable_sync_dispatch()   # ... and run JAX's small CPU calls on its own thread
     parser = build_parser()
     args = parser.parse_args(_join_negative_values(list(sys.argv[1:] if argv is None else argv)))
     main_thread = threading.current_thread() is threading.main_thread()

@@ -1,9 +1,10 @@
 """The image front end gives the same output as the frozen reference copy of it
 (``tests/reference_image``, the implementation before the split and the speed-up), on rendered
 frames of several presets and searches, with occlusion, re-acquisition, templates and width
-estimation: lines, tips, every valid mask, templates and width measures bit for bit; the visible
-shares (and so the line weights) to 1e-12 relative, since a pill inside the image is no longer
-clipped by the image frame (GEOS's clipped ring sums its area in another order)."""
+estimation: every valid mask, templates and width measures bit for bit; lines and tips to 0.01 px
+(the compiled line and crest fits sum in another order); the visible shares (and so the line
+weights) to 1e-12 relative, since a pill inside the image is no longer clipped by the image frame
+(GEOS's clipped ring sums its area in another order)."""
 
 import numpy as np
 import pytest
@@ -48,13 +49,14 @@ def _pred(seq, q, deg, seed, tip_deg=0.0):
 
 
 SHARE_RTOL = 1e-12  # rounding of the visible area's sum (module docstring)
+FEATURE_ATOL = 0.01  # lines and tips: the compiled line and crest fits round their sums otherwise (issue 12's 0.01 px)
 
 
-def _same(a, b, what, rtol=0.0):
+def _same(a, b, what, rtol=0.0, atol=0.0):
     a, b = np.asarray(a), np.asarray(b)
     assert a.shape == b.shape, what
-    if rtol:
-        np.testing.assert_allclose(a, b, rtol=rtol, atol=0, err_msg=what)
+    if rtol or atol:
+        np.testing.assert_allclose(a, b, rtol=rtol, atol=atol, err_msg=what)
     else:
         assert np.array_equal(a, b, equal_nan=True), f"{what}: differs at {np.argwhere(a != b)[:5].tolist()}"
 
@@ -63,7 +65,7 @@ def _same_features(fa, fb, where):
     for c, (a, b) in enumerate(zip(fa, fb, strict=True)):
         for name in ("lines", "line_valid", "line_weight", "tips", "tip_valid", "tip_weight"):
             _same(getattr(a, name), getattr(b, name), f"{where} cam {c} {name}",
-                  SHARE_RTOL if name == "line_weight" else 0.0)
+                  SHARE_RTOL if name == "line_weight" else 0.0, FEATURE_ATOL if name in ("lines", "tips") else 0.0)
 
 
 def _same_state(sa, sb, where):

@@ -34,3 +34,10 @@ def test_the_cli_enables_float64_itself(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert "index: 3 DOF, 3 q entries" in out.stdout
+
+
+def test_sync_dispatch_is_asked_for():
+    flag = "jax.config.read('jax_cpu_enable_async_dispatch')"
+    script = f"import jax, jaxhand as jh; a = {flag}; jh.enable_sync_dispatch(); print(a, {flag})"
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=True).stdout
+    assert out.split() == ["True", "False"]

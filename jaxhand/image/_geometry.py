@@ -15,6 +15,7 @@ import functools
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from ..kinematics import project_pose
@@ -54,8 +55,12 @@ class _Structure:
 
 @functools.partial(jax.jit, static_argnums=0)
 def _view(structure: _Structure, arrays, q):
+    """The link ends, depths, radii and tips of ``project_pose`` packed in one flat array (one
+    conversion to NumPy instead of one per output; packing copies the values unchanged)."""
     model, camera = eqx.combine(arrays, structure.static)
-    return project_pose(model, camera, q)
+    v = project_pose(model, camera, q)
+    return jnp.concatenate([a.astype(float).ravel() for a in (v.link_start_px, v.link_end_px, v.link_depth,
+                                                               v.link_radius_px, v.tips_px)])
 
 
 _SPLITS: dict[tuple[int, int], tuple[Model, object, _Structure, object]] = {}
@@ -71,6 +76,8 @@ def predicted_geometry(model: Model, camera, q: np.ndarray) -> Geometry:
         if len(_SPLITS) >= 8:   # a tracker calls with one model and rig; width estimation makes a new model each frame
             _SPLITS.pop(next(iter(_SPLITS)))
         _SPLITS[key] = hit
-    v = _view(hit[2], hit[3], np.asarray(q, float))
-    return Geometry(start=np.asarray(v.link_start_px), end=np.asarray(v.link_end_px), depth=np.asarray(v.link_depth),
-                    radius=np.asarray(v.link_radius_px), tips=np.asarray(v.tips_px))
+    flat = np.asarray(_view(hit[2], hit[3], np.asarray(q, float)))
+    L = model.n_links
+    start, end, depth, radius, tips = np.split(flat, np.cumsum([2 * L, 2 * L, 2 * L, L]))
+    return Geometry(start=start.reshape(L, 2), end=end.reshape(L, 2), depth=depth.reshape(L, 2), radius=radius,
+                    tips=tips.reshape(-1, 2))

@@ -8,9 +8,15 @@ where the normal equations are singular (fewer than two distinct x).
 
 from __future__ import annotations
 
+import functools
+
+import jax
+import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["plls", "mwplls", "imwplls", "solve_2x2"]
+from ._linefit import padded_rows
+
+__all__ = ["plls", "mwplls", "imwplls", "imwplls_crest_fit", "solve_2x2"]
 
 # |det R| (relative to the squared trace) below which the 2x2 normal equations count as singular.
 SINGULAR = 1e-12
@@ -115,3 +121,55 @@ def imwplls(x: np.ndarray, ys: np.ndarray, weights: np.ndarray, mask: np.ndarray
         iters = iters + step
         active = step & moved
     return c, ok, np.asarray(iters)
+
+
+def _mwplls_jax(x, ys, weights, mask):
+    """:func:`mwplls` in JAX, for the compiled :func:`imwplls_crest_fit`."""
+    w = jnp.where(mask[..., None], weights, 0.0)
+    sw = w.sum(-1)
+    W = (w * ys).sum(-1) * sw
+    a = sw * sw
+    ax = a * x
+    r00, r01, r11 = a.sum(-1), ax.sum(-1), (ax * x).sum(-1)
+    r0, r1 = W.sum(-1), (W * x).sum(-1)
+    det = r00 * r11 - r01 * r01
+    ok = jnp.abs(det) > SINGULAR * jnp.maximum((jnp.abs(r00) + jnp.abs(r11)) ** 2, 1e-300)
+    safe = jnp.where(ok, det, 1.0)
+    c = jnp.stack([(r11 * r0 - r01 * r1) / safe, (r00 * r1 - r01 * r0) / safe], -1)
+    return jnp.where(ok[..., None], c, 0.0), ok
+
+
+@functools.partial(jax.jit, static_argnames=("floor", "max_iter"))
+def _imwplls_crest(C, shifts, curve_ok, halfwidth, *, floor, max_iter):
+    """(links, 3) packed (c0, c1, ok) of :func:`imwplls` over the crest weights of the surfaces ``C``."""
+    top = jnp.max(C, axis=-1, keepdims=True)
+    weights = jnp.maximum(C - floor * jnp.maximum(top, 0.0), 0.0)  # crest_weights
+    x = jnp.arange(C.shape[-2], dtype=float)
+    c, ok = _mwplls_jax(x, shifts, weights, curve_ok)
+
+    def refit(carry):
+        i, c, active = carry
+        near = jnp.abs(shifts - (c[..., 0, None] + c[..., 1, None] * x)[..., None]) <= halfwidth
+        c_new, ok_new = _mwplls_jax(x, shifts, jnp.where(near, weights, 0.0), curve_ok)
+        step = active & ok_new
+        moved = jnp.maximum(jnp.abs(c_new[..., 0] - c[..., 0]), jnp.abs(c_new[..., 1] - c[..., 1])) > 1e-9
+        return i + 1, jnp.where(step[..., None], c_new, c), step & moved
+
+    _, c, _ = jax.lax.while_loop(lambda s: (s[0] < max_iter) & s[2].any(), refit, (0, c, ok))
+    return jnp.concatenate([c, ok[..., None].astype(float)], -1)
+
+
+def imwplls_crest_fit(C: np.ndarray, shifts: np.ndarray, curve_ok: np.ndarray, floor: float, halfwidth: float,
+                      max_iter: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`imwplls` of the crest weights of (links, m, n) correlation surfaces ``C`` at displacements
+    ``shifts`` (n,), with the curves ``curve_ok``: (c, ok) from one compiled call, the rows padded to
+    :func:`padded_rows` sizes (re-acquisition's batches compile a bounded number of times)."""
+    L = len(C)
+    n = padded_rows(L)
+    Cp = np.zeros((n,) + C.shape[1:])
+    Cp[:L] = C
+    okp = np.zeros((n,) + curve_ok.shape[1:], bool)
+    okp[:L] = curve_ok
+    out = np.asarray(_imwplls_crest(Cp, np.asarray(shifts, float), okp, float(halfwidth), floor=float(floor),
+                                    max_iter=int(max_iter)))[:L]
+    return out[:, :2], out[:, 2] > 0

@@ -8,10 +8,10 @@ import dataclasses
 import numpy as np
 
 from ._context import CameraContext, Observation, against_background, off_other_links
-from ._lines import axial_line, line_params, offset_towards, ransac_pca
+from ._linefit import fit_rows
 from ._sampling import sample_profiles
 from ._trackers import LinkSamplers, TipSamplers, place_tip_samplers
-from ._xy import all_last, dot_xy, finite_last, finite_xy, nan_to_num
+from ._xy import all_last, finite_xy, nan_to_num
 from .searches import TEMPLATE_SEARCHES, Edges, Profiles
 from .searches._common import gaussian_derivative, masked_argmax, simple_derivative
 
@@ -54,31 +54,11 @@ class LineFit:
 
 def fit_links(obs: Observation, edge_px: np.ndarray, edge_ok: np.ndarray, config) -> LineFit:
     """Step 5: both boundary lines by RANSAC + PCA, the axial line between them, or a lone boundary
-    offset by the radius towards the predicted axis."""
-    lc = config.lines
+    offset by the radius towards the predicted axis (one compiled call, :mod:`._linefit`)."""
     s = obs.samplers
-    pts = np.swapaxes(nan_to_num(edge_px), 1, 2)  # (links, 2, samplers, 2)
-    ok_pts = np.swapaxes(edge_ok, 1, 2)
-    p, v, ok, inliers = ransac_pca(pts, ok_pts, lc.tau_px, lc.min_inliers)
-    both = ok[:, 0] & ok[:, 1]
-    p_ax, v_ax = axial_line(p[:, 0], v[:, 0], p[:, 1], v[:, 1], lc.det_eps)
-    single = lc.single_edge & (ok[:, 0] ^ ok[:, 1])
-    k = np.where(ok[:, 0], 0, 1)
-    rows = np.arange(len(k))
-    p_one, v_one = p[rows, k], v[rows, k]
     mid = 0.5 * (nan_to_num(obs.start) + nan_to_num(obs.end))
-    p_one = offset_towards(p_one, v_one, mid, s.radius_px)
-    p_ax = np.where(single[:, None], p_one, p_ax)
-    v_ax = np.where(single[:, None], v_one, v_ax)
-    v_ax = np.where((dot_xy(v_ax, s.direction) < 0)[:, None], -v_ax, v_ax)  # point from start to end
-    lines = line_params(p_ax, v_ax)
-    share = obs.visibility.visible_share
-    valid = s.ok & (both | single) & (share >= lc.min_visible) & finite_last(lines)
-    weight = (share if lc.weight_by_visibility else np.ones_like(share)) * np.where(single, lc.single_edge_weight,
-                                                                                    1.0)
-    lines = np.where(valid[:, None], lines, np.array([1.0, 0.0, 0.0]))
-    return LineFit(lines=lines, valid=valid, weight=np.where(valid, weight, 0.0), boundary=line_params(p, v),
-                   bvalid=ok, inliers=inliers, single=single & valid, p_ax=p_ax, v_ax=v_ax)
+    return LineFit(**fit_rows(edge_px, edge_ok, mid, s.radius_px, s.direction, s.ok, obs.visibility.visible_share,
+                              config.lines))
 
 
 @dataclasses.dataclass(frozen=True)

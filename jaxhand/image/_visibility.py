@@ -194,9 +194,7 @@ def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.nda
     Returns:
         (links,) polygons; links with non-finite input or zero radius give empty polygons.
     """
-    k = 2 * arc_points
-    a = 2 * np.pi * np.arange(k) / k
-    circle = np.stack([np.cos(a), np.sin(a)], -1)  # (k, 2)
+    circle = _unit_circle(2 * arc_points)  # (k, 2)
     s = np.asarray(start_px, float)
     e = np.asarray(end_px, float)
     rs = np.asarray(radius_start, float)
@@ -212,6 +210,15 @@ def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.nda
     return np.where(ok, hulls, _EMPTY) if not ok.all() else hulls
 
 
+@functools.lru_cache(maxsize=8)
+def _unit_circle(k: int) -> np.ndarray:
+    """(k, 2) points evenly spaced on the unit circle, from angle 0 (kept per k, read-only)."""
+    a = 2 * np.pi * np.arange(k) / k
+    circle = np.stack([np.cos(a), np.sin(a)], -1)
+    circle.setflags(write=False)
+    return circle
+
+
 def _pills(start_px, end_px, radius_start, radius_end, config: VisibilityConfig) -> np.ndarray:
     """(links, 11) :attr:`Visibility.pills`. The outline's hull vertices lie on the end circles, so
     its edges cut into the pill by at most the chord depth ``r (1 - cos(pi / (2 arc_points)))``,
@@ -223,18 +230,23 @@ def _pills(start_px, end_px, radius_start, radius_end, config: VisibilityConfig)
     far = np.array([1e12, 1e12])  # an empty pill: far from every point
     s, e = np.where(ok[:, None], s, far), np.where(ok[:, None], e, far)
     rs, re = np.where(ok, rs, 0.0), np.where(ok, re, 0.0)
-    d, dr = e - s, re - rs
+    out = np.empty((len(s), 11))  # filled column by column (no np.stack)
+    out[:, 0:2] = s
+    d = np.subtract(e, s, out=out[:, 2:4])
+    out[:, 4] = rs
+    dr = np.subtract(re, rs, out=out[:, 5])
     L2 = dot_xy(d, d)
     steep2 = L2 - dr * dr
     ends = ~(steep2 > 0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv_len = np.where(ends, 0.0, 1.0 / np.sqrt(L2))
-        inv_L2 = np.where(ends, 0.0, 1.0 / L2)
-        ratio = np.where(ends, 0.0, dr * inv_len / np.sqrt(steep2))
-    slack = np.where(ok, np.maximum(rs, re) * (1.0 - np.cos(np.pi / (2 * config.arc_points))) + config.simplify_px,
-                     0.0)
-    return np.stack([s[:, 0], s[:, 1], d[:, 0], d[:, 1], rs, dr, inv_len, inv_L2, ratio, slack, ends.astype(float)],
-                    -1)
+    # Guard: the ends' rows divide by 1 and are then zeroed (no warnings to silence).
+    inv_len = 1.0 / np.sqrt(np.where(ends, 1.0, L2))
+    out[:, 6] = np.where(ends, 0.0, inv_len)
+    out[:, 7] = np.where(ends, 0.0, 1.0 / np.where(ends, 1.0, L2))
+    out[:, 8] = np.where(ends, 0.0, dr * inv_len / np.sqrt(np.where(ends, 1.0, steep2)))
+    out[:, 9] = np.where(ok, np.maximum(rs, re) * (1.0 - np.cos(np.pi / (2 * config.arc_points))) + config.simplify_px,
+                         0.0)
+    out[:, 10] = ends
+    return out
 
 
 def same_chain(link_frame, ancestors: np.ndarray) -> np.ndarray:
@@ -360,7 +372,9 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
 
 def _mean_depth(depth) -> np.ndarray:
     """(pills,) mean depth of each pill's two ends (mm); not finite: infinitely far."""
-    return np.nan_to_num(np.asarray(depth, float).mean(-1), nan=np.inf, posinf=np.inf, neginf=np.inf)
+    d = np.asarray(depth, float)
+    mean = (d[..., 0] + d[..., 1]) / 2  # the same bits as mean(-1) over two entries
+    return np.where(np.isfinite(mean), mean, np.inf)
 
 
 def _boxes_meet(b: np.ndarray, c: np.ndarray) -> np.ndarray:

@@ -7,10 +7,11 @@ from ._config import INTERPOLATIONS, POLARITIES
 from ._context import CameraContext, Observation, against_background, as_images, observe, off_other_links
 from ._diagnostics import CameraDiagnostics, Clock
 from ._geometry import Geometry, predicted_geometry
+from ._linefit import fit_rows, padded_rows
 from ._lines import axial_line, line_params, line_point_direction, offset_towards, ransac_pca
 from ._polygons import convex_edges, inside_polygons
 from ._reacquire import reacquire, reacquire_full, search_turns, turns_to_try
-from ._regression import imwplls, mwplls, plls
+from ._regression import imwplls, imwplls_crest_fit, mwplls, plls
 from ._sampling import INTERPOLATION_FLAGS, as_grey, sample_profiles
 from ._templates import clear_share, link_ends, refresh_gate, seen_axis_offsets, shift_profiles, take_templates
 from ._trackers import LinkSamplers, TipSamplers, place_link_samplers, place_tip_samplers, refine_tip
@@ -37,7 +38,8 @@ __all__ = [
     "LinkSamplers", "TipSamplers", "place_link_samplers", "place_tip_samplers", "refine_tip",
     "Visibility", "OccluderPills", "compute_visibility", "pill_outlines", "same_chain", "window_masks", "convex_edges",
     "inside_polygons", "ransac_pca", "axial_line", "line_params", "line_point_direction", "offset_towards",
-    "plls", "mwplls", "imwplls", "LineFit", "TipFit", "View", "edges_to_px", "fit_links", "find_tips",
+    "plls", "mwplls", "imwplls", "imwplls_crest_fit", "fit_rows", "padded_rows",
+    "LineFit", "TipFit", "View", "edges_to_px", "fit_links", "find_tips",
     "search_view", "reacquire", "reacquire_full", "search_turns", "turns_to_try", "seen_axis_offsets", "shift_profiles",
     "take_templates", "clear_share", "link_ends", "refresh_gate",
     "width_ratios", "correlate_shifts", "derivative_kernel", "gaussian_derivative",

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._config import SearchConfig
-from .._regression import imwplls, mwplls, plls
+from .._regression import imwplls_crest_fit, mwplls, plls
 from ._common import (
     Edges,
     Profiles,
@@ -87,7 +87,6 @@ def mwplls_crest(profiles: Profiles, config: SearchConfig) -> Edges:
 def imwplls_crest(profiles: Profiles, config: SearchConfig) -> Edges:
     """Iterative MWPLLS line, refitted near the crest until it stops moving (§11.3.3)."""
     C, shifts, curve_ok = correlation_surface(profiles, config)
-    x = np.arange(C.shape[1], dtype=float)
-    c, ok, _ = imwplls(x, shifts.astype(float), crest_weights(C, config.crest_floor), curve_ok,
-                       config.crest_halfwidth * profiles.radius, config.max_iter)
+    c, ok = imwplls_crest_fit(C, shifts, curve_ok, config.crest_floor, config.crest_halfwidth * profiles.radius,
+                              config.max_iter)
     return _edges_from_line(profiles, config, C, shifts, curve_ok, c, ok)
