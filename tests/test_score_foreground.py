@@ -7,8 +7,18 @@ import numpy as np
 import pytest
 from mujoco_hand import frame
 
+from jaxhand.image import ImageConfig
 from jaxhand.io import load_devset, open_frames
-from jaxhand.score import BackgroundForeground, SkinForeground, ThresholdForeground, as_grey, sequence_foreground
+from jaxhand.score import (
+    BackgroundForeground,
+    ScoreSection,
+    SkinForeground,
+    ThresholdForeground,
+    as_grey,
+    foreground_for,
+    sequence_foreground,
+)
+from jaxhand.track import ImageFrontEnd, image_front_end
 
 DEVSET = Path(__file__).resolve().parent.parent / "data" / "mujoco"
 
@@ -138,10 +148,6 @@ def test_sequence_foreground_finds_the_hand_on_the_cluttered_dev_sequence():
 
 
 def test_the_sequence_foreground_needs_the_sequence():
-    from jaxhand.image import ImageConfig
-    from jaxhand.score import ScoreSection, foreground_for
-    from jaxhand.track import ImageFrontEnd, image_front_end
-
     section = ScoreSection(foreground="sequence")
     with pytest.raises(ValueError, match="'sequence' learns from the whole sequence: track with jaxhand"):
         foreground_for(section, np.zeros((4, 4), np.uint8))

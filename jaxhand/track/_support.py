@@ -58,20 +58,20 @@ class SupportConfig:
         if not isinstance(self.enabled, bool):
             raise InputError(f"support.enabled: expected true or false, got {self.enabled!r}")
         for name in ("lost", "good"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise InputError(f"support.{name}: expected a finite number, got {value!r}")
+            if not _finite(getattr(self, name)):
+                raise InputError(f"support.{name}: expected a finite number, got {getattr(self, name)!r}")
         if not 0.0 <= self.lost < self.good <= 1.0:
             raise InputError(f"support.lost: need 0 <= lost < good <= 1, got {self.lost}, {self.good}")
-        if isinstance(self.unexplained_px, bool) or not (isinstance(self.unexplained_px, (int, float))
-                                                         and math.isfinite(self.unexplained_px)
-                                                         and self.unexplained_px >= 0):
-            raise InputError(f"support.unexplained_px: expected a finite number >= 0, got {self.unexplained_px!r}")
-        if isinstance(self.judge_power, bool) or not (isinstance(self.judge_power, (int, float))
-                                                      and math.isfinite(self.judge_power) and self.judge_power >= 0):
-            raise InputError(f"support.judge_power: expected a finite number >= 0, got {self.judge_power!r}")
+        for name in ("unexplained_px", "judge_power"):
+            if not (_finite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise InputError(f"support.{name}: expected a finite number >= 0, got {getattr(self, name)!r}")
         if isinstance(self.margin_px, bool) or not isinstance(self.margin_px, int) or self.margin_px < 0:
             raise InputError(f"support.margin_px: expected a whole number >= 0, got {self.margin_px!r}")
+
+
+def _finite(value) -> bool:
+    """A finite int or float (true/false do not count as numbers)."""
+    return not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
 
 
 @dataclasses.dataclass(frozen=True)
