@@ -1,24 +1,17 @@
 """The front end's compiled steps give the NumPy steps' answers to rounding: the line fit
-(:func:`fit_rows`) against :mod:`jaxhand.image._lines`' RANSAC + PCA and axial line, the iMWPLLS
+(:func:`fit_rows`) against the frozen reference copy's RANSAC + PCA and axial line
+(``tests/reference_image/_lines.py``, the NumPy implementation before it was compiled), the iMWPLLS
 crest fit against :func:`imwplls`; and re-acquisition's other row counts compile a bounded number
 of times."""
 
 import numpy as np
 import pytest
+from reference_image._lines import axial_line, line_params, offset_towards, ransac_pca
 
 from jaxhand.image import ImageConfig, extract_features
 from jaxhand.image._linefit import _fit
 from jaxhand.image._regression import _imwplls_crest
-from jaxhand.image.internal import (
-    axial_line,
-    fit_rows,
-    imwplls,
-    imwplls_crest_fit,
-    line_params,
-    offset_towards,
-    padded_rows,
-    ransac_pca,
-)
+from jaxhand.image.internal import fit_rows, imwplls, imwplls_crest_fit, padded_rows
 from jaxhand.image.searches._rectilinear import crest_weights
 from jaxhand.render import RenderConfig, make_preset, render_frame
 
@@ -26,7 +19,7 @@ LC = ImageConfig().lines
 
 
 def _numpy_fit(edge_px, edge_ok, mid, radius, direction, s_ok, share):
-    """The NumPy line fit the compiled one replaces (the steps of :mod:`jaxhand.image._lines`)."""
+    """The NumPy line fit the compiled one replaced (the reference copy's steps)."""
     pts = np.swapaxes(np.where(edge_ok[..., None], edge_px, 0.0), 1, 2)
     p, v, ok, inliers = ransac_pca(pts, np.swapaxes(edge_ok, 1, 2), LC.tau_px, LC.min_inliers)
     p_ax, v_ax = axial_line(p[:, 0], v[:, 0], p[:, 1], v[:, 1], LC.det_eps)

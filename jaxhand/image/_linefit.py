@@ -14,79 +14,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._lines import axial_line_jnp, dot_jnp, line_params_jnp, offset_towards_jnp, ransac_pca_jnp
+
 __all__ = ["fit_rows", "padded_rows"]
 
 
 def padded_rows(n: int) -> int:
     """The row count ``n`` is padded to: the next power of two from 16 (one compilation per size)."""
     return max(16, 1 << (max(n, 1) - 1).bit_length())
-
-
-def _principal(sxx, sxy, syy):
-    """Unit eigenvector of the largest eigenvalue of [[sxx, sxy], [sxy, syy]], in closed form: the
-    row of ``C - lambda_min I`` without cancellation ((1, 0) where the matrix is a multiple of I)."""
-    half = 0.5 * (sxx - syy)
-    root = jnp.sqrt(half * half + sxy * sxy)
-    wide = half >= 0  # the x spread dominates: (lambda - syy, sxy) has no cancellation
-    vx = jnp.where(wide, half + root, sxy)
-    vy = jnp.where(wide, sxy, root - half)
-    n = jnp.sqrt(vx * vx + vy * vy)
-    ok = n > 0
-    safe = jnp.where(ok, n, 1.0)
-    return jnp.where(ok, vx / safe, 1.0), jnp.where(ok, vy / safe, 0.0)
-
-
-def _ransac_pca(pts, valid, tau_px, min_inliers):
-    """:func:`._lines.ransac_pca` for (..., m, 2) points with m >= 2."""
-    m = pts.shape[-2]
-    pts = jnp.where(valid[..., None], pts, 0.0)
-    i, j = np.triu_indices(m, k=1)
-    x, y = pts[..., 0], pts[..., 1]
-    dx, dy = x[..., j] - x[..., i], y[..., j] - y[..., i]
-    norm = jnp.sqrt(dx * dx + dy * dy)
-    pair_ok = valid[..., i] & valid[..., j] & (norm > 1e-9)
-    safe = jnp.where(pair_ok, norm, 1.0)
-    nx, ny = -dy / safe, dx / safe
-    proj = nx[..., :, None] * x[..., None, :] + ny[..., :, None] * y[..., None, :]
-    dist = jnp.abs(proj - (nx * x[..., i] + ny * y[..., i])[..., None])
-    inl = (dist < tau_px) & valid[..., None, :] & pair_ok[..., None]
-    best = jnp.argmax(inl.sum(-1), -1)  # the first pair of the most inliers
-    inliers = jnp.take_along_axis(inl, best[..., None, None], -2)[..., 0, :]
-    ok = inliers.sum(-1) >= max(2, min_inliers)
-    inliers = inliers & ok[..., None]
-    w = inliers.astype(float)
-    cnt = jnp.maximum(w.sum(-1), 1.0)
-    mx, my = (w * x).sum(-1) / cnt, (w * y).sum(-1) / cnt
-    cx, cy = x - mx[..., None], y - my[..., None]
-    vx, vy = _principal((w * cx * cx).sum(-1) / cnt, (w * cx * cy).sum(-1) / cnt, (w * cy * cy).sum(-1) / cnt)
-    p = jnp.stack([jnp.where(ok, mx, 0.0), jnp.where(ok, my, 0.0)], -1)
-    v = jnp.stack([jnp.where(ok, vx, 1.0), jnp.where(ok, vy, 0.0)], -1)
-    return p, v, ok, inliers
-
-
-def _dot(a, b):
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]
-
-
-def _axial_line(p1, v1, p2, v2, det_eps):
-    """:func:`._lines.axial_line`."""
-    plus, minus = v1 + v2, v1 - v2
-    v = jnp.where((jnp.sqrt(_dot(plus, plus)) >= jnp.sqrt(_dot(minus, minus)))[..., None], plus, minus) / 2
-    nv = jnp.sqrt(_dot(v, v))[..., None]
-    v = v / jnp.where(nv > 0, nv, 1.0)
-    det = v1[..., 1] * v2[..., 0] - v1[..., 0] * v2[..., 1]
-    cross = jnp.abs(det) > det_eps
-    dp = p2 - p1
-    k1 = (dp[..., 1] * v2[..., 0] - dp[..., 0] * v2[..., 1]) / jnp.where(cross, det, 1.0)
-    return jnp.where(cross[..., None], p1 + k1[..., None] * v1, (p1 + p2) / 2), v
-
-
-def _line_params(p, v):
-    """:func:`._lines.line_params` without a reference."""
-    nv = jnp.sqrt(_dot(v, v))[..., None]
-    v = v / jnp.where(nv > 0, nv, 1.0)
-    n = jnp.stack([v[..., 1], -v[..., 0]], -1)
-    return jnp.concatenate([n, _dot(n, p)[..., None]], -1)
 
 
 @functools.partial(jax.jit, static_argnames=("tau_px", "min_inliers", "det_eps", "single_edge", "min_visible",
@@ -96,25 +31,23 @@ def _fit(edge_px, edge_ok, rows, *, tau_px, min_inliers, det_eps, single_edge, m
     """(links, 19 + 2 samplers) packed :class:`._view.LineFit` fields of one padded batch; ``rows`` holds
     the axis midpoint (2), radius, direction (2), sampler validity and visible share of each link."""
     pts = jnp.swapaxes(jnp.where(edge_ok[..., None], edge_px, 0.0), 1, 2)  # (links, 2, samplers, 2)
-    p, v, ok, inliers = _ransac_pca(pts, jnp.swapaxes(edge_ok, 1, 2), tau_px, min_inliers)
+    p, v, ok, inliers = ransac_pca_jnp(pts, jnp.swapaxes(edge_ok, 1, 2), tau_px, min_inliers)
     mid, radius, direction, s_ok, share = rows[:, 0:2], rows[:, 2], rows[:, 3:5], rows[:, 5] > 0, rows[:, 6]
     both = ok[:, 0] & ok[:, 1]
-    p_ax, v_ax = _axial_line(p[:, 0], v[:, 0], p[:, 1], v[:, 1], det_eps)
+    p_ax, v_ax = axial_line_jnp(p[:, 0], v[:, 0], p[:, 1], v[:, 1], det_eps)
     single = (ok[:, 0] ^ ok[:, 1]) & single_edge
     p_one = jnp.where(ok[:, :1], p[:, 0], p[:, 1])
     v_one = jnp.where(ok[:, :1], v[:, 0], v[:, 1])
-    n = jnp.stack([-v_one[:, 1], v_one[:, 0]], -1)
-    side = jnp.sign(_dot(mid - p_one, n))
-    p_one = p_one + (jnp.where(side == 0, 1.0, side) * radius)[:, None] * n  # towards the predicted axis
+    p_one = offset_towards_jnp(p_one, v_one, mid, radius)  # towards the predicted axis
     p_ax = jnp.where(single[:, None], p_one, p_ax)
     v_ax = jnp.where(single[:, None], v_one, v_ax)
-    v_ax = jnp.where((_dot(v_ax, direction) < 0)[:, None], -v_ax, v_ax)  # point from start to end
-    lines = _line_params(p_ax, v_ax)
+    v_ax = jnp.where((dot_jnp(v_ax, direction) < 0)[:, None], -v_ax, v_ax)  # point from start to end
+    lines = line_params_jnp(p_ax, v_ax)
     valid = s_ok & (both | single) & (share >= min_visible) & jnp.isfinite(lines).all(-1)
     weight = (share if weight_by_visibility else jnp.ones_like(share)) * jnp.where(single, single_edge_weight, 1.0)
     lines = jnp.where(valid[:, None], lines, jnp.array([1.0, 0.0, 0.0]))
     L = len(lines)
-    parts = [lines, valid[:, None], jnp.where(valid, weight, 0.0)[:, None], _line_params(p, v).reshape(L, 6), ok,
+    parts = [lines, valid[:, None], jnp.where(valid, weight, 0.0)[:, None], line_params_jnp(p, v).reshape(L, 6), ok,
              inliers.reshape(L, -1), (single & valid)[:, None], p_ax, v_ax]
     return jnp.concatenate([a.astype(float) for a in parts], -1)
 
