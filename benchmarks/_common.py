@@ -5,7 +5,8 @@
 - :func:`first_call_seconds`: the time of a first call (trace + compile + run);
 - :func:`environment`: what produced the numbers (CPU, core count, device, library versions, commit,
   load average), never machine paths or user names;
-- :func:`format_table` and :func:`write_json` (into ``benchmarks/results/``).
+- :func:`format_table` and :func:`write_json` (into ``benchmarks/results/``);
+- :func:`add_runtime_option` / :func:`apply_runtime`: ``--cli-runtime``, JAX run as the CLI runs it.
 """
 
 from __future__ import annotations
@@ -28,11 +29,26 @@ import jaxhand
 
 jaxhand.enable_x64()   # every benchmark imports this module before building anything
 
-__all__ = ["REPO", "RESULTS", "block", "time_call", "median_seconds", "first_call_seconds", "environment",
-           "load_average", "format_table", "write_json"]
+__all__ = ["REPO", "RESULTS", "add_runtime_option", "apply_runtime", "block", "time_call", "median_seconds",
+           "first_call_seconds", "environment", "load_average", "format_table", "write_json"]
 
 REPO = Path(__file__).resolve().parent.parent
 RESULTS = REPO / "benchmarks" / "results"
+
+
+def add_runtime_option(parser) -> None:
+    """``--cli-runtime``: run JAX as the ``jaxhand`` CLI does (one thread per CPU computation,
+    synchronous dispatch) instead of JAX's defaults."""
+    parser.add_argument("--cli-runtime", action="store_true",
+                        help="JAX as the CLI runs it: jaxhand.enable_single_thread_cpu() and enable_sync_dispatch()")
+
+
+def apply_runtime(args) -> None:
+    """Apply ``--cli-runtime`` (call it before the first JAX computation); :func:`environment`
+    records what is in force (``xla_flags``, ``async_dispatch``)."""
+    if args.cli_runtime:
+        jaxhand.enable_single_thread_cpu()
+        jaxhand.enable_sync_dispatch()
 
 
 def block(x):
@@ -124,6 +140,8 @@ def environment(*, extra_packages: Sequence[str] = (), watched: Sequence[str] = 
         "jaxlib": _version("jaxlib"),
         "numpy": np.__version__,
         "x64": bool(jax.config.jax_enable_x64),
+        "xla_flags": os.environ.get("XLA_FLAGS", ""),
+        "async_dispatch": bool(jax.config.read("jax_cpu_enable_async_dispatch")),
         "commit": _git("rev-parse", "--short=12", "HEAD"),
         "dirty": None if dirty is None else bool(dirty),
         "load_average_1min_start": load_average(),

@@ -27,7 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import REPO, RESULTS, environment, format_table, write_json  # noqa: E402
+from _common import REPO, RESULTS, add_runtime_option, apply_runtime, environment, format_table, write_json  # noqa: E402
 
 from jaxhand.io import load_devset, open_frames  # noqa: E402
 from jaxhand.track import (  # noqa: E402
@@ -154,7 +154,9 @@ def main(argv=None) -> None:
     p.add_argument("--no-exact", action="store_true", help="skip the exact-feature reference")
     p.add_argument("--no-json", action="store_true")
     p.add_argument("--json", default="devset.json", help="file name under benchmarks/results/")
+    add_runtime_option(p)
     args = p.parse_args(argv)
+    apply_runtime(args)
     rows, records = [], []
     for name in args.only.split(","):
         seq = load_devset(REPO / "data" / "mujoco" / name)

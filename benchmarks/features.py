@@ -57,7 +57,6 @@ from functools import partial  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
-import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 import shapely  # noqa: E402
@@ -66,7 +65,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the reference front end
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # this checkout's jaxhand
 
-from _common import REPO, RESULTS, environment, first_call_seconds, median_seconds, time_call, write_json  # noqa: E402
+from _common import (  # noqa: E402
+    REPO,
+    RESULTS,
+    add_runtime_option,
+    apply_runtime,
+    environment,
+    first_call_seconds,
+    median_seconds,
+    time_call,
+    write_json,
+)
 
 import jaxhand as jh  # noqa: E402
 
@@ -96,8 +105,7 @@ OCCLUDED_SHARE = (0.3, 0.95)
 def bench_environment() -> dict:
     """``_common.environment`` with this benchmark's extras: one thread, OpenCV, Shapely, jaxhand."""
     env = environment(watched=("jaxhand/image", "benchmarks/features.py"))
-    env.update(threads=1, opencv=cv2.__version__, shapely=shapely.__version__, jaxhand=jh.__version__,
-               async_dispatch=bool(jax.config.read("jax_cpu_enable_async_dispatch")))
+    env.update(threads=1, opencv=cv2.__version__, shapely=shapely.__version__, jaxhand=jh.__version__)
     return env
 
 
@@ -492,7 +500,9 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"only the front end vs its reference copy (JSON: {VS_REFERENCE_OUT.relative_to(REPO)})")
     parser.add_argument("--sync-dispatch", action="store_true",
                         help="JAX's CPU calls on the calling thread (jaxhand.enable_sync_dispatch, as the CLI runs)")
+    add_runtime_option(parser)
     args = parser.parse_args(argv)
+    apply_runtime(args)
     if args.sync_dispatch:
         jh.enable_sync_dispatch()
     cv2.setNumThreads(1)

@@ -27,7 +27,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import tracking  # noqa: E402  (benchmarks/tracking.py: its experiments and settings)
-from _common import RESULTS, environment, format_table, write_json  # noqa: E402
+from _common import RESULTS, add_runtime_option, apply_runtime, environment, format_table, write_json  # noqa: E402
 from devset import SETTINGS  # noqa: E402
 
 from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402
@@ -95,7 +95,9 @@ def main(argv=None) -> None:
     p.add_argument("--experiments", action="store_true", help="benchmarks/tracking.py's experiments per setting")
     p.add_argument("--settings", default="hyp4,hyp8+carry", help="with --experiments: devset.py settings")
     p.add_argument("--no-json", action="store_true")
+    add_runtime_option(p)
     args = p.parse_args(argv)
+    apply_runtime(args)
     args.frames = args.frames or (12 if args.experiments else 40)
     args.width_gain, args.reacquire = 0.0, None   # tracking.image_config's command-line overrides: none
     if args.experiments:

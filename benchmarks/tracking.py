@@ -47,7 +47,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import REPO, RESULTS, environment, format_table, write_json  # noqa: E402
+from _common import REPO, RESULTS, add_runtime_option, apply_runtime, environment, format_table, write_json  # noqa: E402
 from devset import track as track_devset  # noqa: E402
 from long import main as long_main  # noqa: E402
 
@@ -242,7 +242,9 @@ def main(argv=None) -> int:
                              "default: each experiment's own)")
     parser.add_argument("--width-gain", type=float, default=0.0,
                         help="estimate the phalanx widths from the images with this gain (ImageConfig.width_gain)")
+    add_runtime_option(parser)
     args = parser.parse_args(argv)
+    apply_runtime(args)
     if args.sweep:
         RESULTS.mkdir(parents=True, exist_ok=True)
         return sweep(args.only or "two_finger_occlusion", args)

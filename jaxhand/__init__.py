@@ -6,7 +6,7 @@ code keeps its behaviour; building a model with float64 off is a one-line error 
 """
 
 from ._errors import CameraError, InputError, JaxhandError, JaxhandWarning, ModelFileError, OutputExistsError  # noqa: E402
-from ._precision import enable_sync_dispatch, enable_x64, x64_enabled  # noqa: E402
+from ._precision import enable_single_thread_cpu, enable_sync_dispatch, enable_x64, x64_enabled  # noqa: E402
 from .camera import Orthographic, Perspective, as_rig, load_camera, save_camera  # noqa: E402
 from .features import Features, features_from_pose  # noqa: E402
 from .image import ImageConfig, ImageState, capture_templates, extract_features  # noqa: E402
@@ -44,7 +44,7 @@ from .track import (  # noqa: E402
 __version__ = "0.1.0"
 
 __all__ = [
-    "enable_x64", "x64_enabled", "enable_sync_dispatch",
+    "enable_x64", "x64_enabled", "enable_sync_dispatch", "enable_single_thread_cpu",
     "JaxhandError", "ModelFileError", "InputError", "CameraError", "OutputExistsError", "JaxhandWarning",
     "Model", "builtin_model", "builtin_names", "get_model", "load_model", "save_model", "model_from_dict",
     "model_to_dict",

@@ -8,11 +8,16 @@ call :func:`require_x64`, which says in one line what to do when it is off.
 
 from __future__ import annotations
 
+import os
+
 import jax
 
 from ._errors import InputError
 
-__all__ = ["enable_x64", "enable_sync_dispatch", "require_x64", "x64_enabled"]
+__all__ = ["enable_x64", "enable_single_thread_cpu", "enable_sync_dispatch", "require_x64", "x64_enabled"]
+
+#: XLA's CPU options that keep each computation on the calling thread (no Eigen or intra-op pool).
+SINGLE_THREAD_XLA_FLAGS = ("--xla_cpu_multi_thread_eigen=false", "intra_op_parallelism_threads=1")
 
 
 def enable_x64() -> None:
@@ -27,6 +32,19 @@ def enable_sync_dispatch() -> None:
     the whole process: a tracker converts every small compiled call's result to NumPy at once, so
     handing each call to a worker thread and waiting only adds CPU time. Opt-in, like :func:`enable_x64`."""
     jax.config.update("jax_cpu_enable_async_dispatch", False)
+
+
+def enable_single_thread_cpu() -> None:
+    """Keep each XLA CPU computation on one thread (adds :data:`SINGLE_THREAD_XLA_FLAGS` to
+    ``XLA_FLAGS``): a tracker's programs are too small to gain from a thread pool, whose hand-offs
+    cost more than they save, and on one thread the results no longer depend on how the work was
+    split. XLA reads the flags when JAX starts its CPU backend, so call this before the first JAX
+    computation (importing jaxhand starts none); later it changes nothing. Opt-in for the whole
+    process, like :func:`enable_x64`; the CLI calls it."""
+    flags = os.environ.get("XLA_FLAGS", "").split()
+    names = {f.split("=")[0] for f in flags}
+    flags += [f for f in SINGLE_THREAD_XLA_FLAGS if f.split("=")[0] not in names]   # the user's own choice stays
+    os.environ["XLA_FLAGS"] = " ".join(flags)
 
 
 def x64_enabled() -> bool:

@@ -18,7 +18,7 @@ import warnings
 from pathlib import Path
 
 from ._errors import InputError, JaxhandError, JaxhandWarning
-from ._precision import enable_sync_dispatch, enable_x64
+from ._precision import enable_single_thread_cpu, enable_sync_dispatch, enable_x64
 
 __all__ = ["main"]
 
@@ -69,6 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     SIGTERM is handled like Ctrl-C (SIGINT) while the command runs, so both stop a long run the
     same clean way (the command's writers keep every finished frame).
     """
+    enable_single_thread_cpu()   # before JAX starts its CPU backend: each small program on one thread
     enable_x64()   # the CLI is a whole program: it may set the process-wide float64 mode jaxhand needs
     enable_sync_dispatch()   # ... and run JAX's small CPU calls on its own thread
     parser = build_parser()

@@ -1,6 +1,7 @@
 """float64 is asked for, not switched on at import (run in fresh interpreters: the tests' own
 process has it on)."""
 
+import os
 import subprocess
 import sys
 
@@ -41,3 +42,24 @@ def test_sync_dispatch_is_asked_for():
     script = f"import jax, jaxhand as jh; a = {flag}; jh.enable_sync_dispatch(); print(a, {flag})"
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=True).stdout
     assert out.split() == ["True", "False"]
+
+
+def test_single_thread_cpu_adds_the_xla_flags_and_keeps_the_users():
+    script = ("import os, jax.numpy as jnp, jaxhand as jh; "
+              "jh.enable_single_thread_cpu(); jh.enable_single_thread_cpu(); "
+              "print(os.environ['XLA_FLAGS']); print(float(jnp.ones((4, 4)).sum()))")
+    env = {**os.environ, "XLA_FLAGS": "--xla_cpu_multi_thread_eigen=true --xla_dump_to=/dev/null"}
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=True,
+                         env=env).stdout.splitlines()
+    assert out[0].split() == ["--xla_cpu_multi_thread_eigen=true", "--xla_dump_to=/dev/null",
+                              "intra_op_parallelism_threads=1"]
+    assert out[1] == "16.0"
+
+
+def test_the_cli_asks_for_one_thread_before_jax_starts():
+    code = ("import os, sys; from jaxhand.cli import main; code = main(['models', 'index']); "
+            "print(os.environ['XLA_FLAGS']); sys.exit(code)")
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines()[-1] == "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
