@@ -18,8 +18,10 @@ from jaxhand.image.internal import (
     inside_polygons,
     observe,
     off_other_links,
+    pill_outlines,
     plls,
     predicted_geometry,
+    row_unions,
     same_chain,
     window_masks,
 )
@@ -232,3 +234,14 @@ def test_predicted_geometry_is_project_pose(name):
     base = predicted_geometry(seq.model, seq.cameras[0], np.asarray(seq.q[0])).radius
     np.testing.assert_allclose(predicted_geometry(thicker, seq.cameras[0], np.asarray(seq.q[0])).radius, 1.3 * base,
                                rtol=1e-12)
+
+
+def test_row_unions_are_one_union_all_per_row():
+    rng = np.random.default_rng(3)
+    start = rng.uniform(20, 80, (9, 2))
+    pills = pill_outlines(start, start + rng.uniform(-30, 30, (9, 2)), rng.uniform(2, 8, 9), rng.uniform(2, 8, 9),
+                          12, 0.25)
+    take = rng.random((6, 9)) < 0.35
+    take[np.arange(6), rng.integers(0, 9, 6)] = True   # every row takes one at least
+    got = row_unions(pills, take)
+    assert [g.wkb for g in got] == [shapely.union_all(pills[row]).wkb for row in take]

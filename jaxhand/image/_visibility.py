@@ -24,7 +24,8 @@ import shapely
 from ._config import VisibilityConfig
 from ._xy import dot_xy, finite_xy, nan_to_num
 
-__all__ = ["Visibility", "OccluderPills", "pill_outlines", "same_chain", "compute_visibility", "window_masks"]
+__all__ = ["Visibility", "OccluderPills", "pill_outlines", "same_chain", "compute_visibility", "window_masks",
+           "row_unions"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,16 +80,10 @@ class Visibility:
         """(links,) window polygons: grown outline less the union of its nearer covers."""
         if not self.cut:
             return self.grown
-        none = _EMPTY
-        # Links with the same occluders (the phalanges of one finger behind another, often) share
-        # one union of them.
-        unions: dict[bytes, object] = {}
-        occl = np.empty(len(self.outlines), dtype=object)
-        for i, row in enumerate(self.nearer):
-            key = row.tobytes()
-            if key not in unions:
-                unions[key] = shapely.union_all(self.covers[row]) if row.any() else none
-            occl[i] = unions[key]
+        occl = np.full(len(self.outlines), _EMPTY, dtype=object)
+        rows = np.flatnonzero(self.nearer.any(1))
+        if len(rows):
+            occl[rows] = row_unions(self.covers, self.nearer[rows])
         return shapely.difference(self.grown, occl)
 
     def rows(self, at: np.ndarray) -> Visibility:
@@ -332,20 +327,11 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
             c = nan_to_num(shapely.bounds(covers))
         # Only nearer pills of other chains whose bounding boxes meet this one's can cut it.
         nearer = candidate & _boxes_meet(b, c)
-        # Links with the same occluders (the phalanges of one finger behind another, often) share
-        # one union of them; a link without occluders keeps its outline (what the difference with
-        # an empty polygon returns).
+        # A link without occluders keeps its outline (what the difference with an empty polygon returns).
         cut_rows = np.flatnonzero(nearer.any(1))
-        unions: dict[bytes, object] = {}
-        occl = np.empty(len(cut_rows), dtype=object)
-        for n, i in enumerate(cut_rows):
-            key = nearer[i].tobytes()
-            if key not in unions:
-                unions[key] = shapely.union_all(cutters[nearer[i]])
-            occl[n] = unions[key]
         visible = outlines.copy()
         if len(cut_rows):
-            visible[cut_rows] = shapely.difference(outlines[cut_rows], occl)
+            visible[cut_rows] = shapely.difference(outlines[cut_rows], row_unions(cutters, nearer[cut_rows]))
     else:
         visible = outlines.copy()
     w, h = image_size
@@ -375,6 +361,15 @@ def _mean_depth(depth) -> np.ndarray:
     d = np.asarray(depth, float)
     mean = (d[..., 0] + d[..., 1]) / 2  # the same bits as mean(-1) over two entries
     return np.where(np.isfinite(mean), mean, np.inf)
+
+
+def row_unions(geoms: np.ndarray, take: np.ndarray) -> np.ndarray:
+    """(rows,) the union of ``geoms[take[i]]`` for each row i (each row takes at least one), in one
+    vectorised ``shapely.union_all`` over a grid padded with None (the same geometry, bit for bit,
+    as one ``union_all`` per row)."""
+    order = np.argsort(~take, axis=1, kind="stable")[:, :int(take.sum(1).max())]
+    grid = np.where(np.take_along_axis(take, order, 1), geoms[order], None)
+    return shapely.union_all(grid, axis=1)
 
 
 def _boxes_meet(b: np.ndarray, c: np.ndarray) -> np.ndarray:

@@ -16,7 +16,15 @@ from ._sampling import INTERPOLATION_FLAGS, as_grey, sample_profiles
 from ._templates import clear_share, link_ends, refresh_gate, seen_axis_offsets, shift_profiles, take_templates
 from ._trackers import LinkSamplers, TipSamplers, place_link_samplers, place_tip_samplers, refine_tip
 from ._view import LineFit, TipFit, View, edges_to_px, find_tips, fit_links, search_view
-from ._visibility import OccluderPills, Visibility, compute_visibility, pill_outlines, same_chain, window_masks
+from ._visibility import (
+    OccluderPills,
+    Visibility,
+    compute_visibility,
+    pill_outlines,
+    row_unions,
+    same_chain,
+    window_masks,
+)
 from ._widths import width_ratios
 from .searches import SEARCHES, TEMPLATE_SEARCHES, Edges, Profiles, search_named
 from .searches._common import (
@@ -36,7 +44,8 @@ __all__ = [
     "CameraContext", "Observation", "observe", "Geometry", "predicted_geometry", "off_other_links",
     "against_background", "CameraDiagnostics", "Clock",
     "LinkSamplers", "TipSamplers", "place_link_samplers", "place_tip_samplers", "refine_tip",
-    "Visibility", "OccluderPills", "compute_visibility", "pill_outlines", "same_chain", "window_masks", "convex_edges",
+    "Visibility", "OccluderPills", "compute_visibility", "pill_outlines", "same_chain", "window_masks", "row_unions",
+    "convex_edges",
     "inside_polygons", "ransac_pca", "axial_line", "line_params", "line_point_direction", "offset_towards",
     "plls", "mwplls", "imwplls", "imwplls_crest_fit", "fit_rows", "padded_rows",
     "LineFit", "TipFit", "View", "edges_to_px", "fit_links", "find_tips",
