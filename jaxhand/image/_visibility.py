@@ -108,16 +108,19 @@ class Visibility:
         lo = np.where(pad > 0, pad * _ARC_COS, 0.0) - self.pills[:, None, 9]
         own = _decide(pill_distance(x, y, self.pills[:, None, :]), lo, pad * _BUFFER_OVER,
                       lambda i, k: shapely.contains_xy(_prepared(self.grown)[i], x[i, k], y[i, k]))
+        own &= finite
         if self.cut and self.nearer.any():
-            i, j = np.nonzero(self.nearer)  # rows sorted, so each row's pairs are contiguous
+            # Only the points inside their own outline can be covered: each (cover, point) pair once.
+            i, j = np.nonzero(self.nearer)
+            a, k = np.nonzero(own[i])
+            r, c = i[a], j[a]
             m = self.margin_px
-            lo = (m * _ARC_COS if m > 0 else 0.0) - self.cover_pills[j, None, 9]
-            covered = _decide(pill_distance(x[i], y[i], self.cover_pills[j, None, :]), lo, m * _BUFFER_OVER,
-                              lambda a, k: shapely.intersects_xy(_prepared(self.covers)[j[a]], x[i[a], k],
-                                                                 y[i[a], k]))
-            first = np.flatnonzero(np.concatenate([[True], i[1:] != i[:-1]]))
-            own[i[first]] &= ~np.logical_or.reduceat(covered, first, axis=0)
-        return (own & finite).reshape(lead)
+            lo = (m * _ARC_COS if m > 0 else 0.0) - self.cover_pills[c, 9]
+            covered = _decide(pill_distance(x[r, k], y[r, k], self.cover_pills[c]), lo, m * _BUFFER_OVER,
+                              lambda n: shapely.intersects_xy(_prepared(self.covers)[c[n]], x[r[n], k[n]],
+                                                              y[r[n], k[n]]))
+            own[r[covered], k[covered]] = False
+        return own.reshape(lead)
 
 
 # One empty polygon for every empty outline (geometries are immutable; building one parses WKT).
@@ -148,10 +151,23 @@ def pill_distance(x: np.ndarray, y: np.ndarray, pills: np.ndarray) -> np.ndarray
     """
     wx, wy = x - pills[..., 0], y - pills[..., 1]
     dx, dy = pills[..., 2], pills[..., 3]
-    h = np.abs(wx * dy - wy * dx) * pills[..., 6]
-    t = (wx * dx + wy * dy) * pills[..., 7] + pills[..., 8] * h
+    h = wx * dy
+    h -= wy * dx
+    np.abs(h, out=h)
+    h *= pills[..., 8] * pills[..., 6]
+    t = wx * dx
+    t += wy * dy
+    t *= pills[..., 7]
+    t += h
     t = np.minimum(np.maximum(t, 0.0, out=t), 1.0, out=t)
-    d = np.hypot(wx - t * dx, wy - t * dy) - (pills[..., 4] + t * pills[..., 5])
+    # The distance to the nearest circle's centre; sqrt of the sum of squares, not np.hypot (several
+    # times slower): the two differ in the last bit, far inside the band that shapely decides.
+    ex, ey = wx - t * dx, wy - t * dy
+    ex *= ex
+    ey *= ey
+    ex += ey
+    d = np.sqrt(ex, out=ex)
+    d -= pills[..., 4] + t * pills[..., 5]
     if pills[..., 10].any():  # one end circle holds the other (or a point-like segment): the larger one
         ends = np.minimum(np.hypot(wx, wy) - pills[..., 4], np.hypot(wx - dx, wy - dy) - pills[..., 4] - pills[..., 5])
         d = np.where(pills[..., 10] > 0, ends, d)
