@@ -118,7 +118,8 @@ def dip_pip_coupling(model: Model, *, weight: float = 1.0 / np.radians(10.0), ra
 
 
 class SoftLimits(eqx.Module):
-    """Soft joint limits: zero inside ``[lower - margin, upper + margin]``, linear beyond.
+    """Soft joint limits: zero inside ``[lower - margin, upper + margin]``, linear beyond (a
+    negative margin lies inside the limits).
 
     Static: ``index`` (the q entries it acts on). Traced: ``lower``, ``upper``, ``margin`` (rad or
     mm, as the entries) and ``weight`` (1/rad or 1/mm), one value per entry.
@@ -155,14 +156,15 @@ def soft_limits(model: Model, *, weight: float = 1.0 / np.radians(2.0), margin: 
     Args:
         model: the model whose ``q_lower``/``q_upper`` are the limits.
         weight: 1 / sigma (1/rad); the default, 2 deg, costs one residual unit 2 deg past a limit.
-        margin: dead zone beyond each limit before the residual starts (rad), >= 0.
+        margin: dead zone beyond each limit before the residual starts (rad); negative: the
+            residual starts that far inside the range (a pose at its limits is unlikely).
         names: q names to limit (default: every entry of kind 'angle' that is not a base entry).
 
     Raises:
-        InputError: an unknown name, a negative margin or weight.
+        InputError: an unknown name, a negative weight, a margin that is not finite.
     """
-    if not (np.isfinite(weight) and weight >= 0 and np.isfinite(margin) and margin >= 0):
-        raise InputError(f"soft_limits: weight and margin must be finite and >= 0, got {weight!r}, {margin!r}")
+    if not (np.isfinite(weight) and weight >= 0 and np.isfinite(margin)):
+        raise InputError(f"soft_limits: weight must be finite and >= 0 and margin finite, got {weight!r}, {margin!r}")
     if names is None:
         kinds = model.q_kinds
         idx = tuple(i for i in range(model.n_base_q, model.n_q) if kinds[i] == "angle")

@@ -67,6 +67,21 @@ def test_soft_limits_zero_inside_linear_outside(hand21):
     np.testing.assert_allclose(p(jnp.asarray(q))[0], 3.0 * 0.2)
 
 
+def test_soft_limits_with_a_negative_margin_act_inside_the_range(hand21):
+    p = soft_limits(hand21, weight=2.0, margin=-0.2, names=("index_mcp",))
+    i = hand21.q_lookup("index_mcp")
+    lo, hi = float(hand21.q_lower[i]), float(hand21.q_upper[i])
+    q = np.asarray(hand21.q_default).copy()
+    q[i] = (lo + hi) / 2
+    np.testing.assert_array_equal(p(jnp.asarray(q)), [0.0])
+    q[i] = hi - 0.05   # 0.15 into the band below the upper limit
+    np.testing.assert_allclose(p(jnp.asarray(q)), [2.0 * 0.15])
+    q[i] = lo + 0.05
+    np.testing.assert_allclose(p(jnp.asarray(q)), [-2.0 * 0.15])
+    with pytest.raises(jh.InputError, match="margin finite"):
+        soft_limits(hand21, margin=float("nan"))
+
+
 def test_soft_limits_default_covers_every_joint_angle():
     m = builtin_model("hand27")
     p = soft_limits(m)

@@ -172,9 +172,9 @@ class PriorConfig:
             along a direction in q that the images see with ``l`` times the prior's information its
             weight is ``ratio / (ratio + l)`` of the full one (0: the fixed sigmas everywhere).
         dip_pip_weight: traced, 1/rad. DIP-PIP coupling, ``w (q_dip - 2/3 q_pip)`` per finger (0: none).
-        soft_limit_weight: traced, 1/rad. Soft joint limits beyond ``soft_limit_margin_deg`` (0: none;
-            the ``bounded`` solver keeps every iterate inside the limits anyway).
-        soft_limit_margin_deg: traced, deg. Dead zone beyond each limit before the soft limit acts.
+        soft_limit_weight: traced, 1/rad. Soft joint limits beyond ``soft_limit_margin_deg`` (0: none).
+        soft_limit_margin_deg: traced, deg. Where each soft limit starts, past its hard limit (the
+            ``bounded`` solver never goes there); negative: that far inside, as a pose at its limits is unlikely.
     """
 
     temporal_sigma_deg: float | None = 0.0
@@ -186,9 +186,9 @@ class PriorConfig:
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
-            value = _off(getattr(self, f.name))
+            value, signed = _off(getattr(self, f.name)), f.name == "soft_limit_margin_deg"
             _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-                  and value >= 0, f"prior.{f.name}", f"expected a finite number >= 0 (0: off), got {value!r}")
+                  and (signed or value >= 0), f"prior.{f.name}", f"expected a finite number >= 0 (0: off), got {value}")
             object.__setattr__(self, f.name, float(value))
         _need(not self.information_ratio or bool(self.temporal_sigma_deg or self.temporal_sigma_mm),
               "prior.information_ratio", "weighs the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
