@@ -11,6 +11,7 @@ from jaxhand.image.internal import (
     Edges,
     Profiles,
     as_grey,
+    correlate_last,
     correlate_shifts,
     derivative_kernel,
     gaussian_derivative,
@@ -119,6 +120,23 @@ def test_simple_derivative():
     d, ok, pos = simple_derivative(v, np.array([[True, True, False, True]]))
     assert np.allclose(d, [[1.0, 0.0, 0.0]]) and ok.tolist() == [[True, False, False]]
     assert np.allclose(pos, [0.5, 1.5, 2.5])
+
+
+@pytest.mark.parametrize("taps", [2, 3, 7, 13, 31, 48, 49, 50, 61])
+def test_correlate_last_is_the_window_matmul_bit_for_bit(taps):
+    # The searches' derivatives and correlation surfaces must keep the bits of the sliding-window
+    # matmul they replaced (masks and edge positions downstream are compared bit for bit).
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    rng = np.random.default_rng(taps)
+    kernel = rng.normal(size=taps)
+    kernel[rng.random(taps) < 0.2] = 0.0  # zero taps (a Gaussian's underflowed tails)
+    for shape in [(15, 8, taps + 47), (5, taps + 31), (3, 2, taps + 1), (2, taps), (taps + 5,)]:
+        a = rng.normal(size=shape) * 100.0
+        a[..., 3:9] = 77.0  # a flat stretch, where the products cancel
+        want = sliding_window_view(a, taps, axis=-1) @ kernel
+        got = correlate_last(a, kernel)
+        assert got.shape == want.shape and np.array_equal(got, want)
 
 
 def test_correlate_shifts_matches_reference():

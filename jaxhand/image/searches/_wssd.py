@@ -25,7 +25,6 @@ from the phalanx width).
 from __future__ import annotations
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 
 from .._config import SearchConfig
 from .._regression import SINGULAR, normal_equations, plls
@@ -41,6 +40,7 @@ from ._common import (
     per_pixel,
     row_starts,
     take_last,
+    windows_last,
 )
 
 __all__ = ["wssd_valley", "wssd_surface"]
@@ -64,15 +64,15 @@ def wssd_surface(values: np.ndarray, usable: np.ndarray, templates: np.ndarray, 
     """
     S = int(max_shift)
     n = values.shape[-1]
-    img = sliding_window_view(pad_last(values, S), n, axis=-1)  # (..., 2S+1, n): I(j + s)
+    img = windows_last(pad_last(values, S), n)  # (..., 2S+1, n): I(j + s)
     # The terms that count as 0/1 factors: a masked difference times 0 is the 0 the sum skips and
     # times 1 is itself, so W has the same bits as masking by assignment. The factor multiplies
     # before the square, and the templates are zeroed outside their window, so no masked term is
     # an inf or a NaN (values are finite). The counts are a correlation of two small 0/1 arrays.
-    ok = sliding_window_view(pad_last(usable, S), n, axis=-1) & window[..., None, :]
+    ok = windows_last(pad_last(usable, S), n) & window[..., None, :]
     diff = np.subtract(img, np.where(window, templates, 0.0)[..., None, :])
     np.multiply(diff, ok, out=diff)  # in place: the surface is the largest array of a frame
-    usable_f = sliding_window_view(pad_last(usable.astype(float), S), n, axis=-1)
+    usable_f = windows_last(pad_last(usable.astype(float), S), n)
     counts = np.rint(np.matmul(usable_f, window.astype(float)[..., None])[..., 0]).astype(int)
     W = np.where(counts > 0, np.square(diff, out=diff).sum(-1) / np.maximum(counts, 1), np.inf)
     return W, counts, np.arange(-S, S + 1)
