@@ -146,7 +146,9 @@ def place_tip_samplers(tip_px: np.ndarray, p_ax: np.ndarray, v_ax: np.ndarray, r
     refined, v0 = refine_tip(np.asarray(tip_px, float), np.asarray(p_ax, float), np.asarray(v_ax, float))
     r = np.asarray(radius_px, float)
     spacing = 2 * config.scope * r / (config.points - 1)
-    j = np.arange(config.points) - (config.points - 1) / 2
+    step = _offsets(config.points, (config.points - 1) / 2)[None, :] * spacing[:, None]  # (tips, points)
     centre = refined + r[:, None] * v0
-    pts = centre[:, None, :] + (j[None, :, None] * spacing[:, None, None]) * v0[:, None, :]
+    pts = np.empty(step.shape + (2,))
+    for c in range(2):  # per component, as for the link samplers
+        np.add(centre[:, None, c], step * v0[:, None, c], out=pts[..., c])
     return TipSamplers(refined=refined, v0=v0, radius_px=r, spacing_px=spacing, points=pts)

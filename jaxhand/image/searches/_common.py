@@ -144,8 +144,9 @@ def parabola_vertex(ym: np.ndarray, y0: np.ndarray, yp: np.ndarray) -> np.ndarra
     """
     den = ym - 2.0 * y0 + yp
     # Guard: a zero curvature (flat or linear triple) has no vertex; keep the integer position.
-    off = np.where(np.abs(den) > 1e-12, 0.5 * (ym - yp) / np.where(np.abs(den) > 1e-12, den, 1.0), 0.0)
-    return np.asarray(np.clip(off, -0.5, 0.5))
+    curved = np.abs(den) > 1e-12
+    off = np.where(curved, 0.5 * (ym - yp) / np.where(curved, den, 1.0), 0.0)
+    return np.asarray(np.minimum(np.maximum(off, -0.5), 0.5))  # np.clip's values without its per-call checks
 
 
 def simple_derivative(values: np.ndarray, usable: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -198,10 +199,12 @@ def gaussian_derivative(values: np.ndarray, usable: np.ndarray, sigma: float
     return np.where(ok, d, 0.0), ok, np.arange(values.shape[-1], dtype=float)
 
 
+@functools.lru_cache(maxsize=64)
 def row_starts(shape: tuple[int, ...]) -> np.ndarray:
-    """(shape[:-1]) the flat index of each row's first entry in a C-ordered array of ``shape``."""
+    """(shape[:-1]) the flat index of each row's first entry in a C-ordered array of ``shape`` (cached
+    per shape and read-only: a frame's arrays have the same few shapes every frame)."""
     n = shape[-1]
-    return np.arange(0, math.prod(shape), n).reshape(shape[:-1])
+    return _read_only(np.arange(0, math.prod(shape), n).reshape(shape[:-1]))
 
 
 def take_last(a: np.ndarray, k: np.ndarray) -> np.ndarray:
@@ -223,15 +226,17 @@ def masked_argmax(score: np.ndarray, allowed: np.ndarray, subsample: bool) -> tu
     """
     s = np.where(allowed, score, -np.inf)
     k = np.argmax(s, axis=-1)
-    val = take_last(s, k)
-    off = np.zeros(k.shape)
-    if subsample:
-        n = score.shape[-1]
-        km, kp = clip_index(k - 1, 0, n - 1), clip_index(k + 1, 0, n - 1)
-        sm, sp = take_last(s, km), take_last(s, kp)
-        inner = (k > 0) & (k < n - 1) & np.isfinite(sm) & np.isfinite(sp) & np.isfinite(val)
-        off = np.where(inner, parabola_vertex(np.where(inner, sm, 0.0), np.where(inner, val, 0.0),
-                                              np.where(inner, sp, 0.0)), 0.0)
+    flat = s.reshape(-1)
+    at = row_starts(s.shape) + k  # take_last's gathers, the rows found once
+    val = flat[at]
+    if not subsample:
+        return k, val, np.zeros(k.shape)
+    after = k > 0
+    before = k < s.shape[-1] - 1
+    sm, sp = flat[at - after], flat[at + before]  # the neighbours, clipped to the row
+    inner = after & before & np.isfinite(sm) & np.isfinite(sp) & np.isfinite(val)
+    off = np.where(inner, parabola_vertex(np.where(inner, sm, 0.0), np.where(inner, val, 0.0),
+                                          np.where(inner, sp, 0.0)), 0.0)
     return k, val, off
 
 
