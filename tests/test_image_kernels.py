@@ -167,6 +167,22 @@ def test_wssd_surface_matches_reference():
             assert (np.isinf(W[idx][si]) and not terms) or np.isclose(W[idx][si], np.mean(terms))
 
 
+@pytest.mark.parametrize("n", [12, 16, 48, 248, 256])
+def test_wssd_surface_counts_on_word_sized_rows(n):
+    # 16, 48 and 248 samples take the 64-bit word count, 12 and 256 the plain sum
+    rng = np.random.default_rng(n)
+    vals = rng.uniform(0, 255, (4, 3, n))
+    usable = rng.random(vals.shape) > 0.1
+    usable[0, 0] = True  # a full row: every count reaches its largest value
+    win = rng.random(vals.shape) > 0.3
+    win[0, 0] = True
+    _, counts, shifts = wssd_surface(vals, usable, rng.uniform(0, 255, vals.shape), win, 5)
+    for idx in np.ndindex(vals.shape[:-1]):
+        for si, s in enumerate(shifts):
+            lo, hi = max(0, -s), min(n, n - s)
+            assert counts[idx][si] == np.count_nonzero(win[idx][lo:hi] & usable[idx][lo + s:hi + s])
+
+
 def test_window_masks_match_pointwise_shapely():
     polys = pill_outlines(np.array([[10.0, 10.0], [30.0, 5.0]]), np.array([[25.0, 20.0], [30.0, 25.0]]),
                           np.array([4.0, 3.0]), np.array([4.0, 3.0]), 8, 0.1)

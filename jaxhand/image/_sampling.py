@@ -91,7 +91,7 @@ def sample_profiles(grey: np.ndarray, points: np.ndarray, interpolation: str = "
     h, w = grey.shape
     flat = pts.reshape(-1, 2)
     fx, fy = flat[:, 0], flat[:, 1]
-    finite = np.isfinite(fx) & np.isfinite(fy)
+    finite = finite_xy(flat)
     inside = finite & (fx >= 0) & (fx <= w - 1) & (fy >= 0) & (fy <= h - 1)
     n = len(flat)
     # One map row when it fits (each output depends on its own position only, so the layout does not

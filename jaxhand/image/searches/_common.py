@@ -274,11 +274,13 @@ def edges_about_centres(centre_pos: np.ndarray, width: float) -> np.ndarray:
 def sample_at(curves: np.ndarray, pos: np.ndarray) -> np.ndarray:
     """Linear interpolation of each curve (last axis) at a fractional index per curve (clipped)."""
     n = curves.shape[-1]
-    p = np.clip(pos, 0, n - 1)
-    k0 = clip_index(np.floor(p).astype(int), 0, n - 2) if n > 1 else np.zeros(p.shape, int)
+    p = np.minimum(np.maximum(pos, 0), n - 1)  # np.clip's values without its per-call checks
+    k0 = clip_index(p.astype(int), 0, n - 2) if n > 1 else np.zeros(p.shape, int)  # p >= 0: the cast floors
     f = p - k0
-    a = take_last(curves, k0)
-    b = take_last(curves, np.minimum(k0 + 1, n - 1))
+    flat = np.ascontiguousarray(curves).reshape(-1)
+    at = row_starts(curves.shape) + k0  # take_last's gathers, the rows found once
+    a = flat[at]
+    b = flat[at + 1] if n > 1 else a  # k0 + 1 <= n - 1
     return (1 - f) * a + f * b
 
 
