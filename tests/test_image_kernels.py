@@ -11,6 +11,7 @@ from jaxhand.image.internal import (
     Edges,
     Profiles,
     as_grey,
+    correlate_last,
     correlate_shifts,
     derivative_kernel,
     gaussian_derivative,
@@ -121,6 +122,23 @@ def test_simple_derivative():
     assert np.allclose(pos, [0.5, 1.5, 2.5])
 
 
+@pytest.mark.parametrize("taps", [2, 3, 7, 13, 31, 48, 49, 50, 61])
+def test_correlate_last_is_the_window_matmul_bit_for_bit(taps):
+    # The searches' derivatives and correlation surfaces must keep the bits of the sliding-window
+    # matmul they replaced (masks and edge positions downstream are compared bit for bit).
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    rng = np.random.default_rng(taps)
+    kernel = rng.normal(size=taps)
+    kernel[rng.random(taps) < 0.2] = 0.0  # zero taps (a Gaussian's underflowed tails)
+    for shape in [(15, 8, taps + 47), (5, taps + 31), (3, 2, taps + 1), (2, taps), (taps + 5,)]:
+        a = rng.normal(size=shape) * 100.0
+        a[..., 3:9] = 77.0  # a flat stretch, where the products cancel
+        want = sliding_window_view(a, taps, axis=-1) @ kernel
+        got = correlate_last(a, kernel)
+        assert got.shape == want.shape and np.array_equal(got, want)
+
+
 def test_correlate_shifts_matches_reference():
     rng = np.random.default_rng(4)
     d = rng.normal(size=(3, 2, 15))
@@ -147,6 +165,22 @@ def test_wssd_surface_matches_reference():
                      if win[idx][j] and 0 <= j + s < 12 and usable[idx][j + s]]
             assert counts[idx][si] == len(terms)
             assert (np.isinf(W[idx][si]) and not terms) or np.isclose(W[idx][si], np.mean(terms))
+
+
+@pytest.mark.parametrize("n", [12, 16, 48, 248, 256])
+def test_wssd_surface_counts_on_word_sized_rows(n):
+    # 16, 48 and 248 samples take the 64-bit word count, 12 and 256 the plain sum
+    rng = np.random.default_rng(n)
+    vals = rng.uniform(0, 255, (4, 3, n))
+    usable = rng.random(vals.shape) > 0.1
+    usable[0, 0] = True  # a full row: every count reaches its largest value
+    win = rng.random(vals.shape) > 0.3
+    win[0, 0] = True
+    _, counts, shifts = wssd_surface(vals, usable, rng.uniform(0, 255, vals.shape), win, 5)
+    for idx in np.ndindex(vals.shape[:-1]):
+        for si, s in enumerate(shifts):
+            lo, hi = max(0, -s), min(n, n - s)
+            assert counts[idx][si] == np.count_nonzero(win[idx][lo:hi] & usable[idx][lo + s:hi + s])
 
 
 def test_window_masks_match_pointwise_shapely():

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 
 import equinox as eqx
 import jax
@@ -37,33 +38,56 @@ class Geometry:
 
 
 class _Structure:
-    """The static part of a (model, camera) pair as a ``jax.jit`` static argument, hashed once."""
+    """The static part of a (model, camera) pair as a ``jax.jit`` static argument, hashed once, with
+    the layout of its arrays: they travel packed in one flat array per dtype, so a call hands the
+    compiled program two arguments instead of every leaf of the model and camera."""
 
-    def __init__(self, static):
+    def __init__(self, static, arrays):
         self.static = static
         leaves, self.treedef = jax.tree_util.tree_flatten(static)
         self.leaves = tuple(leaves)
-        self._hash = hash((self.treedef, self.leaves))
+        arrays, self.array_def = jax.tree_util.tree_flatten(arrays)
+        self.dtypes = tuple(sorted({np.dtype(a.dtype).str for a in arrays}))
+        self.layout = tuple((self.dtypes.index(np.dtype(a.dtype).str), tuple(a.shape)) for a in arrays)
+        self._hash = hash((self.treedef, self.leaves, self.array_def, self.layout))
 
     def __hash__(self) -> int:
         return self._hash
 
     def __eq__(self, other) -> bool:
         return (isinstance(other, _Structure) and self._hash == other._hash and self.treedef == other.treedef
-                and self.leaves == other.leaves)
+                and self.leaves == other.leaves and self.array_def == other.array_def
+                and self.layout == other.layout)
+
+    def pack(self, arrays) -> tuple:
+        """One flat device array per dtype holding every array leaf (values unchanged)."""
+        flat = [np.ravel(np.asarray(a)) for a in jax.tree_util.tree_leaves(arrays)]
+        return tuple(jax.device_put(np.concatenate([f for f, (g, _) in zip(flat, self.layout) if g == k]
+                                                   or [np.zeros(0, k)]))
+                     for k in range(len(self.dtypes)))
+
+    def unpack(self, packed):
+        """The (model, camera) pair back from :meth:`pack`'s arrays (traced: slices and reshapes)."""
+        at = [0] * len(packed)
+        leaves = []
+        for g, shape in self.layout:
+            n = math.prod(shape)
+            leaves.append(packed[g][at[g]:at[g] + n].reshape(shape))
+            at[g] += n
+        return eqx.combine(jax.tree_util.tree_unflatten(self.array_def, leaves), self.static)
 
 
 @functools.partial(jax.jit, static_argnums=0)
-def _view(structure: _Structure, arrays, q):
+def _view(structure: _Structure, packed, q):
     """The link ends, depths, radii and tips of ``project_pose`` packed in one flat array (one
     conversion to NumPy instead of one per output; packing copies the values unchanged)."""
-    model, camera = eqx.combine(arrays, structure.static)
+    model, camera = structure.unpack(packed)
     v = project_pose(model, camera, q)
     return jnp.concatenate([a.astype(float).ravel() for a in (v.link_start_px, v.link_end_px, v.link_depth,
                                                                v.link_radius_px, v.tips_px)])
 
 
-_SPLITS: dict[tuple[int, int], tuple[Model, object, _Structure, object]] = {}
+_SPLITS: dict[tuple[int, int], tuple[Model, object, _Structure, tuple]] = {}
 
 
 def predicted_geometry(model: Model, camera, q: np.ndarray) -> Geometry:
@@ -72,12 +96,12 @@ def predicted_geometry(model: Model, camera, q: np.ndarray) -> Geometry:
     hit = _SPLITS.get(key)
     if hit is None or hit[0] is not model or hit[1] is not camera:
         arrays, static = eqx.partition((model, camera), eqx.is_array)
-        hit = (model, camera, _Structure(static), arrays)
+        structure = _Structure(static, arrays)
+        hit = (model, camera, structure, structure.pack(arrays))
         if len(_SPLITS) >= 8:   # a tracker calls with one model and rig; width estimation makes a new model each frame
             _SPLITS.pop(next(iter(_SPLITS)))
         _SPLITS[key] = hit
     flat = np.asarray(_view(hit[2], hit[3], np.asarray(q, float)))
-    L = model.n_links
-    start, end, depth, radius, tips = np.split(flat, np.cumsum([2 * L, 2 * L, 2 * L, L]))
-    return Geometry(start=start.reshape(L, 2), end=end.reshape(L, 2), depth=depth.reshape(L, 2), radius=radius,
-                    tips=tips.reshape(-1, 2))
+    L = model.n_links  # the packed order of _view; plain slices (np.split costs more than the rest)
+    return Geometry(start=flat[:2 * L].reshape(L, 2), end=flat[2 * L:4 * L].reshape(L, 2),
+                    depth=flat[4 * L:6 * L].reshape(L, 2), radius=flat[6 * L:7 * L], tips=flat[7 * L:].reshape(-1, 2))

@@ -114,14 +114,19 @@ def ransac_pca_jnp(pts, valid, tau_px, min_inliers):
     m = pts.shape[-2]
     pts = jnp.where(valid[..., None], pts, 0.0)
     i, j = np.triu_indices(m, k=1)
+    P = len(i)
     x, y = pts[..., 0], pts[..., 1]
-    dx, dy = x[..., j] - x[..., i], y[..., j] - y[..., i]
+    # Both ends of every pair in one gather: XLA's CPU runtime runs independent gathers side by side
+    # on its worker threads, and handing them over cost more than the gathers (benchmarks/README.md).
+    ends = jnp.stack([x, y, valid.astype(x.dtype)], -2)[..., np.concatenate([i, j])]  # (..., 3, 2 pairs)
+    xi, yi, xj, yj = ends[..., 0, :P], ends[..., 1, :P], ends[..., 0, P:], ends[..., 1, P:]
+    dx, dy = xj - xi, yj - yi
     norm = jnp.sqrt(dx * dx + dy * dy)
-    pair_ok = valid[..., i] & valid[..., j] & (norm > 1e-9)
+    pair_ok = (ends[..., 2, :P] > 0) & (ends[..., 2, P:] > 0) & (norm > 1e-9)
     safe = jnp.where(pair_ok, norm, 1.0)
     nx, ny = -dy / safe, dx / safe
     proj = nx[..., :, None] * x[..., None, :] + ny[..., :, None] * y[..., None, :]
-    dist = jnp.abs(proj - (nx * x[..., i] + ny * y[..., i])[..., None])
+    dist = jnp.abs(proj - (nx * xi + ny * yi)[..., None])
     inl = (dist < tau_px) & valid[..., None, :] & pair_ok[..., None]
     best = jnp.argmax(inl.sum(-1), -1)  # the first pair of the most inliers
     inliers = jnp.take_along_axis(inl, best[..., None, None], -2)[..., 0, :]

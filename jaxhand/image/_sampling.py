@@ -18,8 +18,10 @@ from ._xy import finite_xy
 __all__ = ["as_grey", "sample_profiles", "INTERPOLATION_FLAGS"]
 
 INTERPOLATION_FLAGS = {"nearest": cv2.INTER_NEAREST, "bilinear": cv2.INTER_LINEAR, "bicubic": cv2.INTER_CUBIC}
-# Samples per row of the remap map (OpenCV limits map sizes to below 32767 per side).
+# Samples per row of the remap map when they do not fit in one row (OpenCV limits map sizes to below
+# 32767 per side).
 _ROW = 1024
+_ROW_MAX = 32766
 # Positions are clipped to this far outside the image before remapping (they are masked anyway),
 # so huge or non-finite coordinates never reach OpenCV's fixed-point conversion.
 _CLIP_PX = 4.0
@@ -88,16 +90,20 @@ def sample_profiles(grey: np.ndarray, points: np.ndarray, interpolation: str = "
     shape = pts.shape[:-1]
     h, w = grey.shape
     flat = pts.reshape(-1, 2)
+    fx, fy = flat[:, 0], flat[:, 1]
     finite = finite_xy(flat)
-    inside = finite & (flat[:, 0] >= 0) & (flat[:, 0] <= w - 1) & (flat[:, 1] >= 0) & (flat[:, 1] <= h - 1)
-    x = np.clip(np.where(finite, flat[:, 0], -_CLIP_PX), -_CLIP_PX, w - 1 + _CLIP_PX)
-    y = np.clip(np.where(finite, flat[:, 1], -_CLIP_PX), -_CLIP_PX, h - 1 + _CLIP_PX)
-    n = len(x)
-    rows = max(1, -(-n // _ROW))
-    mx = np.full(rows * _ROW, -_CLIP_PX, np.float32)
-    my = np.full(rows * _ROW, -_CLIP_PX, np.float32)
-    mx[:n], my[:n] = x, y
-    out = cv2.remap(grey, mx.reshape(rows, _ROW), my.reshape(rows, _ROW), INTERPOLATION_FLAGS[interpolation],
+    inside = finite & (fx >= 0) & (fx <= w - 1) & (fy >= 0) & (fy <= h - 1)
+    n = len(flat)
+    # One map row when it fits (each output depends on its own position only, so the layout does not
+    # change a value), else rows of _ROW padded at the end.
+    rows, width = (1, max(n, 1)) if n <= _ROW_MAX else (-(-n // _ROW), _ROW)
+    mx = np.empty(rows * width, np.float32)
+    my = np.empty(rows * width, np.float32)
+    mx[n:] = my[n:] = -_CLIP_PX
+    # np.clip's bounds as minimum/maximum (the same values for the finite coordinates left after where)
+    np.minimum(np.maximum(np.where(finite, fx, -_CLIP_PX), -_CLIP_PX), w - 1 + _CLIP_PX, out=mx[:n], casting="unsafe")
+    np.minimum(np.maximum(np.where(finite, fy, -_CLIP_PX), -_CLIP_PX), h - 1 + _CLIP_PX, out=my[:n], casting="unsafe")
+    out = cv2.remap(grey, mx.reshape(rows, width), my.reshape(rows, width), INTERPOLATION_FLAGS[interpolation],
                     borderMode=cv2.BORDER_REPLICATE)
     vals = out.reshape(-1)[:n].astype(np.float64)
     usable = inside & np.isfinite(vals)

@@ -75,14 +75,25 @@ def place_link_samplers(start_px: np.ndarray, end_px: np.ndarray, radius_px: np.
     # Guard: a link that is not ok gets a dummy direction so every array stays finite; its
     # sample positions are NaN below, which the sampler reports as unusable.
     u = np.where(ok[:, None], d / np.where(ok, length, 1.0)[:, None], np.array([1.0, 0.0]))
-    n = np.stack([u[:, 1], -u[:, 0]], -1)
+    n = np.empty_like(u)  # (u_y, -u_x), filled in place (np.stack costs more than the values)
+    n[:, 0], n[:, 1] = u[:, 1], -u[:, 0]
     f = _along(tuple(config.along), config.per_link)
     centres = np.where(ok[:, None, None], start[:, None] + f[None, :, None] * d[:, None], np.nan)
     spacing = np.where(ok, 2 * config.scope * np.where(ok, radius, 0.0) / (config.points - 1), 0.0)
-    j = np.arange(config.points) - config.centre
-    pts = centres[:, :, None, :] + (j[None, None, :, None] * spacing[:, None, None, None]) * n[:, None, None, :]
+    step = _offsets(config.points, config.centre)[None, :] * spacing[:, None]  # (links, points)
+    pts = np.empty(centres.shape[:2] + (config.points, 2))
+    for c in range(2):  # x, then y: broadcasting over a last axis of 2 runs NumPy's inner loop 2 wide
+        np.add(centres[:, :, None, c], step[:, None, :] * n[:, None, None, c], out=pts[..., c])
     return LinkSamplers(direction=u, normal=n, radius_px=np.where(ok, radius, 0.0), length_px=nan_to_num(length),
                         ok=ok, centres=centres, spacing_px=spacing, points=pts)
+
+
+@functools.lru_cache(maxsize=8)
+def _offsets(points: int, centre: float) -> np.ndarray:
+    """Each sample's index relative to the profile's centre (read-only)."""
+    j = np.arange(points) - centre
+    j.setflags(write=False)
+    return j
 
 
 @functools.lru_cache(maxsize=8)
@@ -135,7 +146,9 @@ def place_tip_samplers(tip_px: np.ndarray, p_ax: np.ndarray, v_ax: np.ndarray, r
     refined, v0 = refine_tip(np.asarray(tip_px, float), np.asarray(p_ax, float), np.asarray(v_ax, float))
     r = np.asarray(radius_px, float)
     spacing = 2 * config.scope * r / (config.points - 1)
-    j = np.arange(config.points) - (config.points - 1) / 2
+    step = _offsets(config.points, (config.points - 1) / 2)[None, :] * spacing[:, None]  # (tips, points)
     centre = refined + r[:, None] * v0
-    pts = centre[:, None, :] + (j[None, :, None] * spacing[:, None, None]) * v0[:, None, :]
+    pts = np.empty(step.shape + (2,))
+    for c in range(2):  # per component, as for the link samplers
+        np.add(centre[:, None, c], step * v0[:, None, c], out=pts[..., c])
     return TipSamplers(refined=refined, v0=v0, radius_px=r, spacing_px=spacing, points=pts)

@@ -28,6 +28,7 @@ from ._visibility import (
 from ._widths import width_ratios
 from .searches import SEARCHES, TEMPLATE_SEARCHES, Edges, Profiles, search_named
 from .searches._common import (
+    correlate_last,
     correlate_shifts,
     derivative_kernel,
     gaussian_derivative,
@@ -51,6 +52,6 @@ __all__ = [
     "LineFit", "TipFit", "View", "edges_to_px", "fit_links", "find_tips",
     "search_view", "reacquire", "reacquire_full", "search_turns", "turns_to_try", "seen_axis_offsets", "shift_profiles",
     "take_templates", "clear_share", "link_ends", "refresh_gate",
-    "width_ratios", "correlate_shifts", "derivative_kernel", "gaussian_derivative",
+    "width_ratios", "correlate_last", "correlate_shifts", "derivative_kernel", "gaussian_derivative",
     "parabola_vertex", "simple_derivative", "width_template", "wssd_descend", "wssd_surface",
 ]

@@ -13,14 +13,14 @@ import dataclasses
 import functools
 import math
 
+import cv2
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 
 from .._xy import clip_index
 
 __all__ = ["Profiles", "Edges", "parabola_vertex", "simple_derivative", "gaussian_derivative",
            "derivative_kernel", "masked_argmax", "width_template", "correlate_shifts", "edges_about_centres",
-           "sample_at", "boundary_peaks", "per_pixel", "pad_last"]
+           "sample_at", "boundary_peaks", "per_pixel", "pad_last", "windows_last", "correlate_last"]
 
 
 def pad_last(a: np.ndarray, h: int, *, edge: bool = False) -> np.ndarray:
@@ -37,6 +37,37 @@ def pad_last(a: np.ndarray, h: int, *, edge: bool = False) -> np.ndarray:
         out[..., :h] = 0
         out[..., h + n:] = 0
     return out
+
+
+def windows_last(a: np.ndarray, n: int) -> np.ndarray:
+    """``sliding_window_view(a, n, axis=-1)`` of a C-contiguous ``a`` (a read-only view of shape
+    ``a.shape[:-1] + (a.shape[-1] - n + 1, n)``), built directly: the same strides, so the same
+    products downstream, without the tens of microseconds of the general function's checks."""
+    win = np.ndarray(a.shape[:-1] + (a.shape[-1] - n + 1, n), a.dtype, buffer=a, strides=a.strides + a.strides[-1:])
+    win.flags.writeable = False
+    return win
+
+
+# OpenCV's filter2D switches to a DFT (other roundings) from this many kernel taps for float64.
+_DIRECT_TAPS = 50
+
+
+def correlate_last(a: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """``out[..., i] = sum_j kernel[j] a[..., i + j]`` for float64 ``a`` (..., m), shape (..., m - k + 1):
+    ``windows_last(a, k) @ kernel`` with the same bits. NumPy's matmul cannot hand overlapping windows
+    to BLAS when there are two windows or more and sums them in its own loop, in order of ``j`` from
+    0; OpenCV's direct ``filter2D`` sums the products in the same order, several outputs at a time,
+    several times faster (tested bit for bit against the matmul in tests/test_image_kernels.py). A
+    single window (which NumPy hands to BLAS) and kernels of ``_DIRECT_TAPS`` taps or more (which
+    OpenCV would filter by DFT) take the matmul."""
+    k = len(kernel)
+    m = a.shape[-1]
+    if m - k < 1 or k >= _DIRECT_TAPS or a.size == 0 or a.dtype != np.float64:
+        return windows_last(np.ascontiguousarray(a), k) @ kernel
+    rows = np.ascontiguousarray(a).reshape(-1, m)
+    out = cv2.filter2D(rows, cv2.CV_64F, np.asarray(kernel, np.float64)[None, :], anchor=(0, 0),
+                       borderType=cv2.BORDER_CONSTANT)
+    return out[:, :m - k + 1].reshape(a.shape[:-1] + (m - k + 1,))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,8 +144,9 @@ def parabola_vertex(ym: np.ndarray, y0: np.ndarray, yp: np.ndarray) -> np.ndarra
     """
     den = ym - 2.0 * y0 + yp
     # Guard: a zero curvature (flat or linear triple) has no vertex; keep the integer position.
-    off = np.where(np.abs(den) > 1e-12, 0.5 * (ym - yp) / np.where(np.abs(den) > 1e-12, den, 1.0), 0.0)
-    return np.asarray(np.clip(off, -0.5, 0.5))
+    curved = np.abs(den) > 1e-12
+    off = np.where(curved, 0.5 * (ym - yp) / np.where(curved, den, 1.0), 0.0)
+    return np.asarray(np.minimum(np.maximum(off, -0.5), 0.5))  # np.clip's values without its per-call checks
 
 
 def simple_derivative(values: np.ndarray, usable: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -157,9 +189,7 @@ def gaussian_derivative(values: np.ndarray, usable: np.ndarray, sigma: float
     """
     c = derivative_kernel(sigma)
     h = (len(c) - 1) // 2
-    padded = pad_last(values, h, edge=True)
-    win = sliding_window_view(padded, len(c), axis=-1)
-    d = win @ c
+    d = correlate_last(pad_last(values, h, edge=True), c)
     bad = pad_last(~usable, h, edge=True)
     n = values.shape[-1]
     hit = bad[..., : n].copy()  # any unusable sample under the kernel, as shifted ORs (no short-axis reduction)
@@ -169,10 +199,12 @@ def gaussian_derivative(values: np.ndarray, usable: np.ndarray, sigma: float
     return np.where(ok, d, 0.0), ok, np.arange(values.shape[-1], dtype=float)
 
 
+@functools.lru_cache(maxsize=64)
 def row_starts(shape: tuple[int, ...]) -> np.ndarray:
-    """(shape[:-1]) the flat index of each row's first entry in a C-ordered array of ``shape``."""
+    """(shape[:-1]) the flat index of each row's first entry in a C-ordered array of ``shape`` (cached
+    per shape and read-only: a frame's arrays have the same few shapes every frame)."""
     n = shape[-1]
-    return np.arange(0, math.prod(shape), n).reshape(shape[:-1])
+    return _read_only(np.arange(0, math.prod(shape), n).reshape(shape[:-1]))
 
 
 def take_last(a: np.ndarray, k: np.ndarray) -> np.ndarray:
@@ -194,15 +226,17 @@ def masked_argmax(score: np.ndarray, allowed: np.ndarray, subsample: bool) -> tu
     """
     s = np.where(allowed, score, -np.inf)
     k = np.argmax(s, axis=-1)
-    val = take_last(s, k)
-    off = np.zeros(k.shape)
-    if subsample:
-        n = score.shape[-1]
-        km, kp = clip_index(k - 1, 0, n - 1), clip_index(k + 1, 0, n - 1)
-        sm, sp = take_last(s, km), take_last(s, kp)
-        inner = (k > 0) & (k < n - 1) & np.isfinite(sm) & np.isfinite(sp) & np.isfinite(val)
-        off = np.where(inner, parabola_vertex(np.where(inner, sm, 0.0), np.where(inner, val, 0.0),
-                                              np.where(inner, sp, 0.0)), 0.0)
+    flat = s.reshape(-1)
+    at = row_starts(s.shape) + k  # take_last's gathers, the rows found once
+    val = flat[at]
+    if not subsample:
+        return k, val, np.zeros(k.shape)
+    after = k > 0
+    before = k < s.shape[-1] - 1
+    sm, sp = flat[at - after], flat[at + before]  # the neighbours, clipped to the row
+    inner = after & before & np.isfinite(sm) & np.isfinite(sp) & np.isfinite(val)
+    off = np.where(inner, parabola_vertex(np.where(inner, sm, 0.0), np.where(inner, val, 0.0),
+                                          np.where(inner, sp, 0.0)), 0.0)
     return k, val, off
 
 
@@ -228,9 +262,8 @@ def correlate_shifts(d: np.ndarray, d_valid: np.ndarray, template: np.ndarray, m
         (C, shifts): C with shape (..., 2 S + 1) and the displacement of each column.
     """
     S = int(max_shift)
-    padded = pad_last(np.where(d_valid, d, 0.0), S)
-    win = sliding_window_view(padded, d.shape[-1], axis=-1)  # (..., 2S+1, n): row s is d(j + s - S)
-    return win @ template, np.arange(-S, S + 1)
+    padded = pad_last(np.where(d_valid, d, 0.0), S)  # C(s) is the window of padded starting at s + S
+    return correlate_last(padded, template), np.arange(-S, S + 1)
 
 
 def edges_about_centres(centre_pos: np.ndarray, width: float) -> np.ndarray:
@@ -241,11 +274,13 @@ def edges_about_centres(centre_pos: np.ndarray, width: float) -> np.ndarray:
 def sample_at(curves: np.ndarray, pos: np.ndarray) -> np.ndarray:
     """Linear interpolation of each curve (last axis) at a fractional index per curve (clipped)."""
     n = curves.shape[-1]
-    p = np.clip(pos, 0, n - 1)
-    k0 = clip_index(np.floor(p).astype(int), 0, n - 2) if n > 1 else np.zeros(p.shape, int)
+    p = np.minimum(np.maximum(pos, 0), n - 1)  # np.clip's values without its per-call checks
+    k0 = clip_index(p.astype(int), 0, n - 2) if n > 1 else np.zeros(p.shape, int)  # p >= 0: the cast floors
     f = p - k0
-    a = take_last(curves, k0)
-    b = take_last(curves, np.minimum(k0 + 1, n - 1))
+    flat = np.ascontiguousarray(curves).reshape(-1)
+    at = row_starts(curves.shape) + k0  # take_last's gathers, the rows found once
+    a = flat[at]
+    b = flat[at + 1] if n > 1 else a  # k0 + 1 <= n - 1
     return (1 - f) * a + f * b
 
 
