@@ -49,6 +49,8 @@ SETTINGS = {
     "default": {},
     # TrackConfig.preset("robust")
     "robust": PRESETS["robust"],
+    # ... with soft limits from 10 deg inside each joint limit (TrackConfig.preset("robust-limits"))
+    "robust-limits": PRESETS["robust-limits"],
     # ... with the foreground learned from the sequence (its median, seeded at the first pose)
     "robust+sequence": {**PRESETS["robust"], "image": {**PRESETS["robust"]["image"],
                                                        "score": {"foreground": "sequence"}}},

@@ -157,7 +157,8 @@ def soft_limits(model: Model, *, weight: float = 1.0 / np.radians(2.0), margin: 
         model: the model whose ``q_lower``/``q_upper`` are the limits.
         weight: 1 / sigma (1/rad); the default, 2 deg, costs one residual unit 2 deg past a limit.
         margin: dead zone beyond each limit before the residual starts (rad); negative: the
-            residual starts that far inside the range (a pose at its limits is unlikely).
+            residual starts that far inside the range (a pose at its limits is unlikely), but
+            never past the model's default pose (a straight finger near its extension limit is not).
         names: q names to limit (default: every entry of kind 'angle' that is not a base entry).
 
     Raises:
@@ -177,8 +178,12 @@ def soft_limits(model: Model, *, weight: float = 1.0 / np.radians(2.0), margin: 
     sel = np.array(idx, dtype=int)
     dtype = model.q_lower.dtype
     k = len(idx)
-    return SoftLimits(index=idx, lower=model.q_lower[sel], upper=model.q_upper[sel],
-                      margin=jnp.full((k,), margin, dtype), weight=jnp.full((k,), weight, dtype))
+    lower, upper = model.q_lower[sel], model.q_upper[sel]
+    if margin < 0:   # the band inside the range stops at the default pose
+        rest = jnp.clip(model.q_default[sel], lower, upper)
+        lower, upper, margin = jnp.minimum(lower - margin, rest), jnp.maximum(upper + margin, rest), 0.0
+    return SoftLimits(index=idx, lower=lower, upper=upper, margin=jnp.full((k,), margin, dtype),
+                      weight=jnp.full((k,), weight, dtype))
 
 
 def stack_priors(priors, q: Float[ArrayLike, " nq"]) -> Float[Array, " r"]:

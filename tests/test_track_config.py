@@ -132,7 +132,9 @@ def test_presets_apply_named_changes_and_unknown_names_are_listed():
     robust = TrackConfig().preset("robust")
     assert robust.image.silhouette_term.weight == 0.5 and robust.hypotheses.flips == 4 and robust.hypotheses.rest
     assert robust.filter.report_solve and not robust.loss.hold and robust.prior.dip_pip_weight == 4.0
-    assert robust.prior.soft_limit_weight == 30.0 and robust.prior.soft_limit_margin_deg == -10.0
+    limits = TrackConfig().preset("robust-limits")
+    assert limits.prior.soft_limit_weight == 30.0 and limits.prior.soft_limit_margin_deg == -10.0
+    assert limits.merged({"prior": {"soft_limit_weight": 0.0, "soft_limit_margin_deg": 0.0}}) == robust
     assert config_from_dict(config_to_dict(robust)) == robust
-    with pytest.raises(jh.InputError, match="preset: unknown preset 'fast'; valid: thesis, robust"):
+    with pytest.raises(jh.InputError, match="preset: unknown preset 'fast'; valid: thesis, robust, robust-limits"):
         TrackConfig().preset("fast")

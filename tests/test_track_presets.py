@@ -1,4 +1,4 @@
-"""The robust preset's soft limits inside the joint ranges, end to end on a dev-set sequence."""
+"""The robust-limits preset's soft limits inside the joint ranges, end to end on a dev-set sequence."""
 
 from pathlib import Path
 
@@ -15,14 +15,13 @@ DEVSET = Path(__file__).resolve().parent.parent / "data" / "mujoco"
 @pytest.mark.slow
 def test_soft_limits_keep_the_index_off_its_mirror_pose():
     """thumb_opposition, frames 1-24: as the index flexes towards the thumb, the preset without its
-    soft limits lets it settle abducted and hyper-extended at both limits (the mirror of the
+    soft limits (the robust preset) lets it settle abducted and hyper-extended at both limits (the mirror of the
     true flexion in this view; benchmarks/README.md); with them it follows the flexion."""
     seq = load_devset(DEVSET / "thumb_opposition")
     m, cams = seq.model, seq.truth.cameras
     index = [m.q_lookup(n) for n in m.q_names if n.startswith("index")]
-    robust = TrackConfig().preset("robust")
     errors = {}
-    for label, config in (("with", robust), ("without", robust.merged({"prior": {"soft_limit_weight": 0.0}}))):
+    for label, config in (("with", TrackConfig().preset("robust-limits")), ("without", TrackConfig().preset("robust"))):
         tracker = Tracker(m, cams, ImageFrontEnd(m, cams, config.image), config, dt_s=1 / 30)
         state, err = tracker.init(np.asarray(seq.truth.q[0])), []
         for k in range(1, 25):
