@@ -39,6 +39,7 @@ from _common import RESULTS, environment, format_table, write_json  # noqa: E402
 
 from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402
 from jaxhand.track import (  # noqa: E402
+    PRESETS,
     AbstractFrontEnd,
     ImageFrontEnd,
     TrackConfig,
@@ -72,14 +73,8 @@ VARIANTS = {
     "drift-fix": Variant({"image": {"refresh": {"min_move": 0.2}}, "filter": {"damp_unseen": True}}),
     "refresh-per-motion": Variant({"image": {"refresh": {"min_move": 0.2}}}),
     "damp-unseen": Variant({"filter": {"damp_unseen": True}}),
-    "drift-fix+tip-line": Variant({"image": {"refresh": {"min_move": 0.2}, "tips": {"need_line": True}},
-                                   "filter": {"damp_unseen": True}}),
-    "motion+tip-line": Variant({"image": {"refresh": {"min_move": 0.2}, "tips": {"need_line": True}}}),
-    "tip-line": Variant({"image": {"tips": {"need_line": True}}}),
-    "dip-pip": Variant({"prior": {"dip_pip_weight": 4.0}}),
-    "drift-fix+dip-pip": Variant({"image": {"refresh": {"min_move": 0.2}}, "filter": {"damp_unseen": True},
-                                  "prior": {"dip_pip_weight": 4.0}}),
-    "motion+dip-pip": Variant({"image": {"refresh": {"min_move": 0.2}}, "prior": {"dip_pip_weight": 4.0}}),
+    # the DIP-PIP coupling in every solve (TrackConfig.preset("coupled")): meets issue 13's target alone
+    "coupled": Variant(PRESETS["coupled"]),
 }
 
 
@@ -171,7 +166,8 @@ def _table(summaries: list[dict]) -> str:
     def f(v):
         return "-" if v is None else f"{v:.1f}"
 
-    rows = [[s["sequence"], s["frames"], s["variant"] + (f" from {s['start']}" if s.get("start") else ""), f"{s['frames_done']}", f"{s.get('mean_deg', float('nan')):.2f}",
+    rows = [[s["sequence"], s["frames"], s["variant"] + (f" from {s['start']}" if s.get("start") else ""),
+             f"{s['frames_done']}", f"{s.get('mean_deg', float('nan')):.2f}",
              f"{s.get('raw_mean_deg', float('nan')):.2f}", " ".join(f(v) for v in s.get("thirds_deg", [])),
              " ".join(f(v) for v in s.get("tenths_deg", [])), s.get("lost_frames", 0),
              f"{s.get('tip_mean_px', float('nan')):.2f}"] for s in summaries]

@@ -7,11 +7,14 @@ __all__ = ["PRESETS"]
 #: silhouette term in every solve and as the judge of six starts (the prediction, four flips of
 #: the least observed joints, the last solve) plus the rest pose, a weak DIP-PIP coupling, the
 #: solve reported (the filter only predicts), no hold, and the weakest finger's image support in
-#: the confidence (benchmarks/README.md, dev-set tables).
+#: the confidence (benchmarks/README.md, dev-set tables). "coupled": the DIP-PIP coupling in every
+#: solve (``prior.dip_pip_weight`` 4/rad): a hidden or foreshortened DIP follows its PIP instead of
+#: the filter's extrapolation or a stale template (issue 13, benchmarks/README.md, long.py).
 PRESETS: dict[str, dict] = {
     "thesis": {},
     "robust": {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False},
                "filter": {"report_solve": True}, "prior": {"dip_pip_weight": 4.0},
                "hypotheses": {"flips": 4, "flip_deg": 40.0, "last_solve": True, "rest": True},
                "support": {"enabled": True}},
+    "coupled": {"prior": {"dip_pip_weight": 4.0}},
 }
