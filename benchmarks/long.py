@@ -75,6 +75,7 @@ VARIANTS = {
     "damp-unseen": Variant({"filter": {"damp_unseen": True}}),
     # the DIP-PIP coupling in every solve (TrackConfig.preset("coupled")): meets issue 13's target alone
     "coupled": Variant(PRESETS["coupled"]),
+    "robust": Variant(PRESETS["robust"]),   # six starts per frame and the silhouette term (slow)
 }
 
 
