@@ -97,15 +97,14 @@ class RefreshAtTruth(AbstractFrontEnd):
 class _Run:
     """One tracker on the shared frames and the JSONL file it appends each frame to."""
 
-    def __init__(self, seq, variant: str, config: TrackConfig, refresh_at_truth: bool, header: dict, start: int = 0):
+    def __init__(self, seq, variant: str, config: TrackConfig, refresh_at_truth: bool, header: dict):
         self.seq = seq
         frontend = ImageFrontEnd(seq.model, seq.cameras, config.image)
         if refresh_at_truth:
             frontend = RefreshAtTruth(frontend, seq.q)
         self.tracker = Tracker(seq.model, seq.cameras, frontend, config, dt_s=float(seq.times_s[1] - seq.times_s[0]))
-        self.state = self.tracker.init(seq.q[start])
-        tail = f"_from{start}" if start else ""
-        self.path = RUNS / f"{seq.name}_{seq.n_frames}_{variant}{tail}.jsonl"
+        self.state = self.tracker.init(seq.q[header["start"]])
+        self.path = RUNS / f"{seq.name}_{seq.n_frames}_{variant}{_stretch(header)}.jsonl"
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.file = self.path.open("w", buffering=1)   # line-buffered: each frame is on disk when written
         self.file.write(json.dumps({**header, "variant": variant, "config": config_to_dict(config)}) + "\n")
@@ -120,6 +119,13 @@ class _Run:
                "lost": bool(rep.lost), "conf": round(float(rep.confidence), 4), "rms": round(float(rep.rms_px), 4),
                "tip": round(tip["mean"], 4), "s": round(seconds, 5)}
         self.file.write(json.dumps(row) + "\n")
+
+
+def _stretch(run: dict) -> str:
+    """The file-name and key suffix of a run over part of the path (``--start``, ``--stop``), so a
+    stretch never overwrites the whole run's file or summary; "" for the whole path."""
+    start, stop = run.get("start") or 0, run.get("stop")
+    return (f"_from{start}" if start else "") + (f"_to{stop}" if stop is not None and stop < run["frames"] else "")
 
 
 def _rounded(q) -> list[float]:
@@ -138,7 +144,7 @@ def summarise(path: Path) -> dict:
     start = header.get("start", 0)
     planned, moving = header["frames"] - start, np.asarray(header["moving"])
     out = {k: header[k] for k in ("sequence", "frames", "variant", "antialias", "size", "environment")}
-    out["start"] = start
+    out.update(start=start, stop=header.get("stop"))
     out.update(frames_done=len(rows), complete=len(rows) == planned)
     if not rows:
         return out
@@ -167,7 +173,7 @@ def _table(summaries: list[dict]) -> str:
     def f(v):
         return "-" if v is None else f"{v:.1f}"
 
-    rows = [[s["sequence"], s["frames"], s["variant"] + (f" from {s['start']}" if s.get("start") else ""),
+    rows = [[s["sequence"], s["frames"], s["variant"] + _stretch(s).replace("_", " "),
              f"{s['frames_done']}", f"{s.get('mean_deg', float('nan')):.2f}",
              f"{s.get('raw_mean_deg', float('nan')):.2f}", " ".join(f(v) for v in s.get("thirds_deg", [])),
              " ".join(f(v) for v in s.get("tenths_deg", [])), s.get("lost_frames", 0),
@@ -179,8 +185,7 @@ def _table(summaries: list[dict]) -> str:
 def _save(summaries: list[dict], path: Path) -> None:
     """Merge ``summaries`` into the JSON at ``path`` (runs keyed by sequence, frames and variant)."""
     old = json.loads(path.read_text())["runs"] if path.is_file() else {}
-    old.update({f"{s['sequence']}_{s['frames']}_{s['variant']}" + (f"_from{s['start']}" if s.get("start") else ""): s
-                for s in summaries})
+    old.update({f"{s['sequence']}_{s['frames']}_{s['variant']}{_stretch(s)}": s for s in summaries})
     write_json({"runs": dict(sorted(old.items()))}, path)
     print(f"wrote {path}")
 
@@ -197,10 +202,10 @@ def track_long(name: str, frames: int, variants: dict[str, tuple[TrackConfig, bo
     moving = (np.ptp(seq.q, axis=0) > 1e-6) & np.asarray(seq.model.is_angle)
     header = {"sequence": name, "frames": frames, "antialias": antialias, "size": size,
               "moving": moving.tolist(), "moving_names": [n for n, m in zip(seq.model.q_names, moving) if m],
-              "environment": environment(), "start": start}
+              "environment": environment(), "start": start, "stop": stop}
     runs = []
     for v, (c, at_truth) in variants.items():
-        runs.append(_Run(seq, v, c, at_truth, header, start))
+        runs.append(_Run(seq, v, c, at_truth, header))
         paths.append(runs[-1].path)
     render = RenderConfig(antialias=antialias)
     t0 = time.perf_counter()
@@ -226,7 +231,7 @@ def main(argv=None) -> int:
                    help="a further variant from a TrackConfig TOML file (named after the file)")
     p.add_argument("--antialias", type=int, default=1, help="render samples per pixel per axis (jaxhand synth's 1)")
     p.add_argument("--size", default="320x240", help="image size WxH")
-    p.add_argument("--stop", type=int, help="track only the first N frames of each run (same files as a full run)")
+    p.add_argument("--stop", type=int, help="track only up to frame N of each run (files and keys named _toN)")
     p.add_argument("--start", type=int, default=0,
                    help="start tracking at frame N from its true pose (a diagnostic: a later stretch alone)")
     p.add_argument("--report", action="store_true", help="only summarise the JSONL files already written")
