@@ -8,8 +8,10 @@ __all__ = ["PRESETS"]
 #: the least observed joints, the last solve) plus the rest pose, a weak DIP-PIP coupling, the
 #: solve reported (the filter only predicts), no hold, and the weakest finger's image support in
 #: the confidence (benchmarks/README.md, dev-set tables). "coupled": the DIP-PIP coupling in every
-#: solve (``prior.dip_pip_weight`` 4/rad): a hidden or foreshortened DIP follows its PIP instead of
-#: the filter's extrapolation or a stale template (issue 13, benchmarks/README.md, long.py).
+#: solve (``prior.dip_pip_weight`` 4/rad), so a hidden or drifting DIP follows its PIP instead of
+#: the filter's extrapolation or a stale template: no drift on benchmarks/long.py's slow path, but
+#: worse where a hand's DIP does not follow 2/3 of its PIP (the DIP = PIP experiments of
+#: tracking.py), hence not the default (issue 13; benchmarks/README.md, 2026-12-03).
 PRESETS: dict[str, dict] = {
     "thesis": {},
     "robust": {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False},
