@@ -17,6 +17,7 @@ They go to ``benchmarks/results/long.json`` (merged with the runs already there)
     .venv/bin/python benchmarks/long.py --frames 2000 --variants default,no-refresh,no-filter
     .venv/bin/python benchmarks/long.py --frames 2000 --config run.toml  # a variant from a TOML file
     .venv/bin/python benchmarks/long.py --frames 2000 --stop 700 --variants truth-refresh  # first 700 only
+    .venv/bin/python benchmarks/long.py --frames 8000 --start 3200 --stop 5600  # a stretch, from the truth
     .venv/bin/python benchmarks/long.py --report                         # re-summarise the JSONL files
     .venv/bin/python benchmarks/tracking.py --long ...                   # the same
 """
@@ -38,6 +39,7 @@ from _common import RESULTS, environment, format_table, write_json  # noqa: E402
 
 from jaxhand.render import RenderConfig, make_preset, render_frame  # noqa: E402
 from jaxhand.track import (  # noqa: E402
+    PRESETS,
     AbstractFrontEnd,
     ImageFrontEnd,
     TrackConfig,
@@ -71,6 +73,9 @@ VARIANTS = {
     "drift-fix": Variant({"image": {"refresh": {"min_move": 0.2}}, "filter": {"damp_unseen": True}}),
     "refresh-per-motion": Variant({"image": {"refresh": {"min_move": 0.2}}}),
     "damp-unseen": Variant({"filter": {"damp_unseen": True}}),
+    # the DIP-PIP coupling in every solve (TrackConfig.preset("coupled")): meets issue 13's target alone
+    "coupled": Variant(PRESETS["coupled"]),
+    "robust": Variant(PRESETS["robust"]),   # six starts per frame and the silhouette term (slow)
 }
 
 
@@ -98,8 +103,8 @@ class _Run:
         if refresh_at_truth:
             frontend = RefreshAtTruth(frontend, seq.q)
         self.tracker = Tracker(seq.model, seq.cameras, frontend, config, dt_s=float(seq.times_s[1] - seq.times_s[0]))
-        self.state = self.tracker.init(seq.q[0])
-        self.path = RUNS / f"{seq.name}_{seq.n_frames}_{variant}.jsonl"
+        self.state = self.tracker.init(seq.q[header["start"]])
+        self.path = RUNS / f"{seq.name}_{seq.n_frames}_{variant}{_stretch(header)}.jsonl"
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.file = self.path.open("w", buffering=1)   # line-buffered: each frame is on disk when written
         self.file.write(json.dumps({**header, "variant": variant, "config": config_to_dict(config)}) + "\n")
@@ -116,6 +121,13 @@ class _Run:
         self.file.write(json.dumps(row) + "\n")
 
 
+def _stretch(run: dict) -> str:
+    """The file-name and key suffix of a run over part of the path (``--start``, ``--stop``), so a
+    stretch never overwrites the whole run's file or summary; "" for the whole path."""
+    start, stop = run.get("start") or 0, run.get("stop")
+    return (f"_from{start}" if start else "") + (f"_to{stop}" if stop is not None and stop < run["frames"] else "")
+
+
 def _rounded(q) -> list[float]:
     return [round(float(v), 7) for v in np.asarray(q)]
 
@@ -129,8 +141,10 @@ def summarise(path: Path) -> dict:
             rows.append(json.loads(line))
         except json.JSONDecodeError:   # a line cut short by a kill
             break
-    planned, moving = header["frames"], np.asarray(header["moving"])
+    start = header.get("start", 0)
+    planned, moving = header["frames"] - start, np.asarray(header["moving"])
     out = {k: header[k] for k in ("sequence", "frames", "variant", "antialias", "size", "environment")}
+    out.update(start=start, stop=header.get("stop"))
     out.update(frames_done=len(rows), complete=len(rows) == planned)
     if not rows:
         return out
@@ -159,7 +173,8 @@ def _table(summaries: list[dict]) -> str:
     def f(v):
         return "-" if v is None else f"{v:.1f}"
 
-    rows = [[s["sequence"], s["frames"], s["variant"], f"{s['frames_done']}", f"{s.get('mean_deg', float('nan')):.2f}",
+    rows = [[s["sequence"], s["frames"], s["variant"] + _stretch(s).replace("_", " "),
+             f"{s['frames_done']}", f"{s.get('mean_deg', float('nan')):.2f}",
              f"{s.get('raw_mean_deg', float('nan')):.2f}", " ".join(f(v) for v in s.get("thirds_deg", [])),
              " ".join(f(v) for v in s.get("tenths_deg", [])), s.get("lost_frames", 0),
              f"{s.get('tip_mean_px', float('nan')):.2f}"] for s in summaries]
@@ -170,15 +185,16 @@ def _table(summaries: list[dict]) -> str:
 def _save(summaries: list[dict], path: Path) -> None:
     """Merge ``summaries`` into the JSON at ``path`` (runs keyed by sequence, frames and variant)."""
     old = json.loads(path.read_text())["runs"] if path.is_file() else {}
-    old.update({f"{s['sequence']}_{s['frames']}_{s['variant']}": s for s in summaries})
+    old.update({f"{s['sequence']}_{s['frames']}_{s['variant']}{_stretch(s)}": s for s in summaries})
     write_json({"runs": dict(sorted(old.items()))}, path)
     print(f"wrote {path}")
 
 
 def track_long(name: str, frames: int, variants: dict[str, tuple[TrackConfig, bool]], antialias: int, size: str,
-               paths: list[Path], stop: int | None = None) -> None:
-    """Render ``name`` over ``frames`` frames and track it (its first ``stop`` frames) with every
-    variant (config, refresh at the truth), appending each variant's JSONL file to ``paths``.
+               paths: list[Path], stop: int | None = None, start: int = 0) -> None:
+    """Render ``name`` over ``frames`` frames and track it (frames ``start`` to ``stop``, from the
+    true pose of frame ``start``) with every variant (config, refresh at the truth), appending each
+    variant's JSONL file to ``paths``.
 
     A KeyboardInterrupt goes through after closing the files, which keep every finished frame.
     """
@@ -186,7 +202,7 @@ def track_long(name: str, frames: int, variants: dict[str, tuple[TrackConfig, bo
     moving = (np.ptp(seq.q, axis=0) > 1e-6) & np.asarray(seq.model.is_angle)
     header = {"sequence": name, "frames": frames, "antialias": antialias, "size": size,
               "moving": moving.tolist(), "moving_names": [n for n, m in zip(seq.model.q_names, moving) if m],
-              "environment": environment()}
+              "environment": environment(), "start": start, "stop": stop}
     runs = []
     for v, (c, at_truth) in variants.items():
         runs.append(_Run(seq, v, c, at_truth, header))
@@ -194,7 +210,8 @@ def track_long(name: str, frames: int, variants: dict[str, tuple[TrackConfig, bo
     render = RenderConfig(antialias=antialias)
     t0 = time.perf_counter()
     try:
-        for k, q in enumerate(seq.q[:stop]):
+        for k in range(start, frames if stop is None else min(stop, frames)):
+            q = seq.q[k]
             images = [render_frame(seq.model, c, q, render).image for c in seq.cameras]
             for r in runs:
                 r.step(images, k)
@@ -214,7 +231,9 @@ def main(argv=None) -> int:
                    help="a further variant from a TrackConfig TOML file (named after the file)")
     p.add_argument("--antialias", type=int, default=1, help="render samples per pixel per axis (jaxhand synth's 1)")
     p.add_argument("--size", default="320x240", help="image size WxH")
-    p.add_argument("--stop", type=int, help="track only the first N frames of each run (same files as a full run)")
+    p.add_argument("--stop", type=int, help="track only up to frame N of each run (files and keys named _toN)")
+    p.add_argument("--start", type=int, default=0,
+                   help="start tracking at frame N from its true pose (a diagnostic: a later stretch alone)")
     p.add_argument("--report", action="store_true", help="only summarise the JSONL files already written")
     p.add_argument("--json", default="long.json", help="summary file under benchmarks/results/")
     args = p.parse_args(argv)
@@ -228,7 +247,7 @@ def main(argv=None) -> int:
         paths = []
         try:
             for n in (int(v) for v in args.frames.split(",")):
-                track_long(args.sequence, n, variants, args.antialias, args.size, paths, args.stop)
+                track_long(args.sequence, n, variants, args.antialias, args.size, paths, args.stop, args.start)
         except KeyboardInterrupt:
             print("interrupted: summarising the finished frames", flush=True)
             interrupted = True

@@ -9,8 +9,12 @@ __all__ = ["PRESETS"]
 #: solve reported (the filter only predicts), no hold, and the weakest finger's image support in
 #: the confidence. "robust-limits": "robust" with soft limits from 10 deg inside each joint limit
 #: (a finger stuck at its limits is the mirror of a pose the view cannot tell from it): more
-#: accurate on the dev set, but the support rule, tuned on "robust", flags its frames less well
-#: (benchmarks/README.md, dev-set tables).
+#: accurate on the dev set, but the support rule, tuned on "robust", flags its frames less well.
+#: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
+#: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
+#: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
+#: its PIP (the DIP = PIP experiments of tracking.py), hence not the default (issue 13;
+#: benchmarks/README.md, dev-set and long.py tables).
 _ROBUST = {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False}, "filter": {"report_solve": True},
            "prior": {"dip_pip_weight": 4.0},
            "hypotheses": {"flips": 4, "flip_deg": 40.0, "last_solve": True, "rest": True},
@@ -20,4 +24,5 @@ PRESETS: dict[str, dict] = {
     "robust": _ROBUST,
     "robust-limits": {**_ROBUST, "prior": {**_ROBUST["prior"], "soft_limit_weight": 30.0,
                                            "soft_limit_margin_deg": -10.0}},
+    "coupled": {"prior": {"dip_pip_weight": 4.0}},
 }
