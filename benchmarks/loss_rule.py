@@ -8,11 +8,12 @@ flags 5 % of the good ones. Then the rule "flagged before, or weakest finger sup
 unexplained blob >= a px": t and a chosen on four sequences (the most bad frames flagged with at
 most 4 % of the good ones), scored on the fifth.
 
-    .venv/bin/python benchmarks/loss_rule.py
+    .venv/bin/python benchmarks/loss_rule.py [--json loss_signals_robust_limits.json]
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
@@ -59,8 +60,11 @@ def fit(flags: dict, bad, good, train, cap: float = 0.04):
     return max(flags, key=key)
 
 
-def main() -> None:
-    rows = json.loads((RESULTS / "loss_signals.json").read_text())["frames"]
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--json", default="loss_signals.json", help="loss_signals.py's file under benchmarks/results/")
+    args = p.parse_args(argv)
+    rows = json.loads((RESULTS / args.json).read_text())["frames"]
     seq = np.array([r["sequence"] for r in rows])
     err = np.array([r["tip_error_px"] for r in rows])
     bad, good = err > 8.0, err < 3.0

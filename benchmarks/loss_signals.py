@@ -1,6 +1,7 @@
 """Per-frame candidate evidence for the loss flag (issue 13), with the truth, on the robust preset.
 
-Tracks each dev-set sequence as ``benchmarks/devset.py --settings robust --no-exact`` does, with
+Tracks each dev-set sequence as ``benchmarks/devset.py --settings robust --no-exact`` does (or
+with another ``--preset``), with
 the support rule off (it changes no estimate, only the confidence), and keeps per frame: the
 mean tip error of the estimate against the truth (px), the confidence and loss flag without the
 support rule, and the candidate evidence the tracker can compute without the truth:
@@ -31,13 +32,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import REPO, RESULTS, environment, write_json  # noqa: E402
+from _common import REPO, RESULTS, add_runtime_option, apply_runtime, environment, write_json  # noqa: E402
 
 import jaxhand.track._tracker as tracker_module  # noqa: E402
 from jaxhand import kinematics  # noqa: E402
 from jaxhand.io import load_devset, open_frames  # noqa: E402
 from jaxhand.score import capsules_from_model, foreground_for, rasterize  # noqa: E402
-from jaxhand.track import ImageFrontEnd, TrackConfig, Tracker  # noqa: E402
+from jaxhand.track import PRESETS, ImageFrontEnd, TrackConfig, Tracker  # noqa: E402
 from jaxhand.track._support import finger_of_link, largest_unexplained_px, weakest_finger  # noqa: E402
 
 SEQUENCES = ("open_close", "index_over_middle", "thumb_opposition", "fast_spread", "wave_two_cameras")
@@ -56,10 +57,10 @@ def _spread(model, cams, qs, merit, q_win, share: float = 0.9) -> float:
     return float(d.mean(-1).max())
 
 
-def run(name: str, frames: int | None) -> list[dict]:
+def run(name: str, frames: int | None, preset: str = "robust") -> list[dict]:
     seq = load_devset(REPO / "data" / "mujoco" / name)
     m, cams = seq.model, seq.truth.cameras
-    config = TrackConfig().preset("robust").merged({"support": {"enabled": False}})
+    config = TrackConfig().preset(preset).merged({"support": {"enabled": False}})
     frontend = ImageFrontEnd(m, cams, config.image)
     tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
     finger = finger_of_link(m)
@@ -113,11 +114,14 @@ def main(argv=None) -> None:
     p.add_argument("--only", default=",".join(SEQUENCES))
     p.add_argument("--frames", type=int, default=None)
     p.add_argument("--json", default="loss_signals.json", help="file name under benchmarks/results/")
+    p.add_argument("--preset", default="robust", choices=tuple(PRESETS), help="the tracker's preset")
+    add_runtime_option(p)
     args = p.parse_args(argv)
+    apply_runtime(args)
     rows = []
     for name in args.only.split(","):
-        rows += run(name, args.frames)
-    write_json({"environment": environment(), "frames": rows}, RESULTS / args.json)
+        rows += run(name, args.frames, args.preset)
+    write_json({"environment": environment(), "preset": args.preset, "frames": rows}, RESULTS / args.json)
 
 
 if __name__ == "__main__":
