@@ -40,8 +40,9 @@ def register(sub) -> None:
                                                     "jaxhand.save_track_config); the flags below override it")
     p.add_argument("--preset", choices=tuple(PRESETS),
                    help="named settings on top of --config or the defaults: 'robust' for images jaxhand did not "
-                        "draw (the silhouette term, six starts per frame; slower), 'thesis' the documents' "
-                        "tracker (default: thesis)")
+                        "draw (the silhouette term, six starts per frame; slower), 'robust-limits' the same with "
+                        "soft limits inside the joint ranges, 'coupled' the DIP-PIP coupling alone (no drift on "
+                        "long slow runs), 'thesis' the documents' tracker (default: thesis)")
     defaults = TrackConfig()   # --help shows the defaults of the config itself
     p.add_argument("--method",
                    help=f"feature search: {' | '.join(SEARCH_NAMES)} (default: {defaults.image.method})")
