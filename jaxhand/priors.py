@@ -158,7 +158,8 @@ def soft_limits(model: Model, *, weight: float = 1.0 / np.radians(2.0), margin: 
         weight: 1 / sigma (1/rad); the default, 2 deg, costs one residual unit 2 deg past a limit.
         margin: dead zone beyond each limit before the residual starts (rad); negative: the
             residual starts that far inside the range (a pose at its limits is unlikely), but
-            never past the model's default pose (a straight finger near its extension limit is not).
+            never past the model's default pose or the zero angle (a straight finger near its
+            extension limit is not).
         names: q names to limit (default: every entry of kind 'angle' that is not a base entry).
 
     Raises:
@@ -179,9 +180,10 @@ def soft_limits(model: Model, *, weight: float = 1.0 / np.radians(2.0), margin: 
     dtype = model.q_lower.dtype
     k = len(idx)
     lower, upper = model.q_lower[sel], model.q_upper[sel]
-    if margin < 0:   # the band inside the range stops at the default pose
-        rest = jnp.clip(model.q_default[sel], lower, upper)
-        lower, upper, margin = jnp.minimum(lower - margin, rest), jnp.maximum(upper + margin, rest), 0.0
+    if margin < 0:   # the band inside the range stops at the default pose and at zero
+        rest, zero = jnp.clip(model.q_default[sel], lower, upper), jnp.clip(0.0, lower, upper)
+        lower = jnp.minimum(lower - margin, jnp.minimum(rest, zero))
+        upper, margin = jnp.maximum(upper + margin, jnp.maximum(rest, zero)), 0.0
     return SoftLimits(index=idx, lower=lower, upper=upper, margin=jnp.full((k,), margin, dtype),
                       weight=jnp.full((k,), weight, dtype))
 

@@ -82,14 +82,15 @@ def test_soft_limits_with_a_negative_margin_act_inside_the_range(hand21):
         soft_limits(hand21, margin=float("nan"))
 
 
-def test_soft_limits_inside_the_range_stop_at_the_default_pose(hand21):
+def test_soft_limits_inside_the_range_stop_at_the_default_pose_and_zero(hand21):
     p = soft_limits(hand21, weight=1.0, margin=-3.0, names=("index_mcp",))   # a band wider than the range
     i = hand21.q_lookup("index_mcp")
+    rest = float(hand21.q_default[i])
+    assert rest < -0.1   # hand21 rests flexed: between its default and zero nothing costs
     q = np.asarray(hand21.q_default).copy()
-    np.testing.assert_array_equal(p(jnp.asarray(q)), [0.0])
-    for step in (0.1, -0.1):
-        q[i] = float(hand21.q_default[i]) + step
-        np.testing.assert_allclose(p(jnp.asarray(q)), [step])
+    for angle, expected in ((rest, 0.0), (rest / 2, 0.0), (0.0, 0.0), (0.1, 0.1), (rest - 0.1, -0.1)):
+        q[i] = angle
+        np.testing.assert_allclose(p(jnp.asarray(q)), [expected], atol=1e-15)
 
 
 def test_soft_limits_default_covers_every_joint_angle():

@@ -7,9 +7,10 @@ __all__ = ["PRESETS"]
 #: silhouette term in every solve and as the judge of six starts (the prediction, four flips of
 #: the least observed joints, the last solve) plus the rest pose, a weak DIP-PIP coupling, the
 #: solve reported (the filter only predicts), no hold, and the weakest finger's image support in
-#: the confidence. "robust-limits": "robust" with soft limits from 10 deg inside each joint limit
-#: (a finger stuck at its limits is the mirror of a pose the view cannot tell from it): more
-#: accurate on the dev set, but the support rule, tuned on "robust", flags its frames less well.
+#: the confidence. "robust-limits": "robust" with soft limits from 10 deg inside each joint limit,
+#: up to the default pose and zero (a finger stuck at its limits mirrors a pose the view cannot
+#: tell from it): more accurate on the dev set, but the support rule, tuned on "robust", flags
+#: its frames less well.
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
