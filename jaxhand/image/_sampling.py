@@ -101,8 +101,9 @@ def sample_profiles(grey: np.ndarray, points: np.ndarray, interpolation: str = "
     my = np.empty(rows * width, np.float32)
     mx[n:] = my[n:] = -_CLIP_PX
     # np.clip's bounds as minimum/maximum (the same values for the finite coordinates left after where)
-    np.minimum(np.maximum(np.where(finite, fx, -_CLIP_PX), -_CLIP_PX), w - 1 + _CLIP_PX, out=mx[:n], casting="unsafe")
-    np.minimum(np.maximum(np.where(finite, fy, -_CLIP_PX), -_CLIP_PX), h - 1 + _CLIP_PX, out=my[:n], casting="unsafe")
+    for f, size, m in ((fx, w, mx), (fy, h, my)):
+        np.minimum(np.maximum(np.where(finite, f, -_CLIP_PX), -_CLIP_PX), size - 1 + _CLIP_PX, out=m[:n],
+                   casting="unsafe")
     out = cv2.remap(grey, mx.reshape(rows, width), my.reshape(rows, width), INTERPOLATION_FLAGS[interpolation],
                     borderMode=cv2.BORDER_REPLICATE)
     vals = out.reshape(-1)[:n].astype(np.float64)

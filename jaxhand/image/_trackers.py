@@ -21,7 +21,7 @@ import functools
 import numpy as np
 
 from ._config import SamplerConfig, TipConfig
-from ._xy import dot_xy, finite_xy, nan_to_num, norm_xy
+from ._xy import along_xy, dot_xy, finite_xy, nan_to_num, norm_xy
 
 __all__ = ["LinkSamplers", "TipSamplers", "place_link_samplers", "refine_tip", "place_tip_samplers"]
 
@@ -81,9 +81,7 @@ def place_link_samplers(start_px: np.ndarray, end_px: np.ndarray, radius_px: np.
     centres = np.where(ok[:, None, None], start[:, None] + f[None, :, None] * d[:, None], np.nan)
     spacing = np.where(ok, 2 * config.scope * np.where(ok, radius, 0.0) / (config.points - 1), 0.0)
     step = _offsets(config.points, config.centre)[None, :] * spacing[:, None]  # (links, points)
-    pts = np.empty(centres.shape[:2] + (config.points, 2))
-    for c in range(2):  # x, then y: broadcasting over a last axis of 2 runs NumPy's inner loop 2 wide
-        np.add(centres[:, :, None, c], step[:, None, :] * n[:, None, None, c], out=pts[..., c])
+    pts = along_xy(centres[:, :, None, :], step[:, None, :], n[:, None, None, :])
     return LinkSamplers(direction=u, normal=n, radius_px=np.where(ok, radius, 0.0), length_px=nan_to_num(length),
                         ok=ok, centres=centres, spacing_px=spacing, points=pts)
 
@@ -148,7 +146,5 @@ def place_tip_samplers(tip_px: np.ndarray, p_ax: np.ndarray, v_ax: np.ndarray, r
     spacing = 2 * config.scope * r / (config.points - 1)
     step = _offsets(config.points, (config.points - 1) / 2)[None, :] * spacing[:, None]  # (tips, points)
     centre = refined + r[:, None] * v0
-    pts = np.empty(step.shape + (2,))
-    for c in range(2):  # per component, as for the link samplers
-        np.add(centre[:, None, c], step * v0[:, None, c], out=pts[..., c])
+    pts = along_xy(centre[:, None, :], step, v0[:, None, :])
     return TipSamplers(refined=refined, v0=v0, radius_px=r, spacing_px=spacing, points=pts)

@@ -11,7 +11,7 @@ from ._context import CameraContext, Observation, against_background, off_other_
 from ._linefit import fit_rows
 from ._sampling import sample_profiles
 from ._trackers import LinkSamplers, TipSamplers, place_tip_samplers
-from ._xy import all_last, finite_xy, nan_to_num
+from ._xy import all_last, along_xy, finite_xy, nan_to_num
 from .searches import TEMPLATE_SEARCHES, Edges, Profiles
 from .searches._common import gaussian_derivative, masked_argmax, simple_derivative
 
@@ -21,9 +21,7 @@ __all__ = ["LineFit", "TipFit", "View", "edges_to_px", "fit_links", "find_tips",
 def edges_to_px(samplers: LinkSamplers, edges: Edges, centre: float) -> tuple[np.ndarray, np.ndarray]:
     """(links, samplers, 2, 2) boundary points in pixels (NaN where not found) and which were found."""
     off = (edges.pos - centre) * samplers.spacing_px[:, None, None]  # (links, samplers, 2), px along the normal
-    pts = np.empty(off.shape + (2,))
-    for c in range(2):  # x, then y: broadcasting over a last axis of 2 runs NumPy's inner loop 2 wide
-        np.add(samplers.centres[:, :, None, c], off * samplers.normal[:, None, None, c], out=pts[..., c])
+    pts = along_xy(samplers.centres[:, :, None, :], off, samplers.normal[:, None, None, :])
     ok = edges.valid & samplers.ok[:, None, None] & finite_xy(pts)
     pts[~ok] = np.nan
     return pts, ok

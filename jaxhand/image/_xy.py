@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["finite_xy", "finite_last", "dot_xy", "norm_xy", "clip_index", "nan_to_num", "all_last"]
+__all__ = ["finite_xy", "finite_last", "dot_xy", "norm_xy", "clip_index", "nan_to_num", "all_last", "along_xy"]
 
 
 def finite_xy(p: np.ndarray | np.generic) -> np.ndarray | np.generic:
@@ -51,4 +51,14 @@ def all_last(b: np.ndarray) -> np.ndarray | np.generic:
     out = b[..., 0].copy()
     for k in range(1, b.shape[-1]):
         out &= b[..., k]
+    return out
+
+
+def along_xy(origin: np.ndarray, step: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """``origin + step[..., None] * direction`` for (..., 2) ``origin`` and ``direction``, filled per
+    component (broadcasting over a last axis of 2 runs NumPy's inner loop 2 wide; the same bits)."""
+    shape = np.broadcast_shapes(origin.shape[:-1], np.shape(step), direction.shape[:-1])
+    out = np.empty(shape + (2,))
+    for c in range(2):
+        np.add(origin[..., c], step * direction[..., c], out=out[..., c])
     return out
