@@ -245,3 +245,20 @@ def test_row_unions_are_one_union_all_per_row():
     take[np.arange(6), rng.integers(0, 9, 6)] = True   # every row takes one at least
     got = row_unions(pills, take)
     assert [g.wkb for g in got] == [shapely.union_all(pills[row]).wkb for row in take]
+
+
+@pytest.mark.parametrize("arc_points", [4, 12])
+@pytest.mark.parametrize("tolerance", [0.25, 1.0])
+def test_pill_outlines_keep_the_topology_preserving_vertices(arc_points, tolerance):
+    # Random pills from sub-pixel to 40 px radii: the outlines are the hull simplified by GEOS's
+    # topology-preserving simplifier, vertex for vertex (the ring may start elsewhere).
+    rng = np.random.default_rng(5)
+    n = 4000
+    start = rng.uniform(-50, 370, (n, 2))
+    end = start + rng.uniform(-60, 60, (n, 2)) * (rng.random((n, 1)) < 0.8)
+    r0 = np.exp(rng.uniform(np.log(0.2), np.log(40), n))
+    r1 = r0 * rng.uniform(0.5, 1.5, n)
+    got = pill_outlines(start, end, r0, r1, arc_points, tolerance)
+    want = shapely.simplify(pill_outlines(start, end, r0, r1, arc_points, 0.0), tolerance)
+    assert shapely.equals_exact(shapely.normalize(got), shapely.normalize(want), tolerance=0).all()
+    assert (shapely.get_num_coordinates(want) <= 7).sum() > 50   # the small rings the fallback keeps are tried
