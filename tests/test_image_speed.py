@@ -13,6 +13,7 @@ from jaxhand.image import ImageConfig, WindowOutlines, extract_features
 from jaxhand.image.internal import (
     CameraContext,
     Clock,
+    compute_visibility,
     as_grey,
     convex_edges,
     inside_polygons,
@@ -262,3 +263,24 @@ def test_pill_outlines_keep_the_topology_preserving_vertices(arc_points, toleran
     want = shapely.simplify(pill_outlines(start, end, r0, r1, arc_points, 0.0), tolerance)
     assert shapely.equals_exact(shapely.normalize(got), shapely.normalize(want), tolerance=0).all()
     assert (shapely.get_num_coordinates(want) <= 7).sum() > 50   # the small rings the fallback keeps are tried
+
+
+def test_visible_polygons_are_the_outlines_less_their_nearer_cutters():
+    # Random overlapping scenes: each visible polygon has the area of its outline less the union of
+    # every nearer pill of another chain (the covers' box test, as in compute_visibility).
+    rng = np.random.default_rng(11)
+    config = ImageConfig().visibility
+    for _ in range(20):
+        n = 12
+        start = rng.uniform(40, 160, (n, 2))
+        end = start + rng.uniform(-40, 40, (n, 2))
+        depth = rng.uniform(90, 110, (n, 2))
+        r0, r1 = rng.uniform(2, 9, n), rng.uniform(2, 9, n)
+        chain = np.eye(n, dtype=bool)
+        chain[0, 1] = chain[1, 0] = True
+        vis = compute_visibility(start, end, depth, r0, r1, chain, (200, 200), config)
+        for i in range(n):
+            cut = vis.outlines[vis.nearer[i]]
+            want = shapely.difference(vis.outlines[i], shapely.union_all(cut)) if len(cut) else vis.outlines[i]
+            assert shapely.area(vis.visible[i]) == pytest.approx(shapely.area(want), rel=1e-12, abs=1e-12)
+        assert vis.nearer.sum() > 5   # occlusion is exercised

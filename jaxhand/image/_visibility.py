@@ -359,11 +359,7 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
             c = nan_to_num(shapely.bounds(covers))
         # Only nearer pills of other chains whose bounding boxes meet this one's can cut it.
         nearer = candidate & _boxes_meet(b, c)
-        # A link without occluders keeps its outline (what the difference with an empty polygon returns).
-        cut_rows = np.flatnonzero(nearer.any(1))
-        visible = outlines.copy()
-        if len(cut_rows):
-            visible[cut_rows] = shapely.difference(outlines[cut_rows], row_unions(cutters, nearer[cut_rows]))
+        visible = _cut_outlines(outlines, cutters, nearer)
     else:
         visible = outlines.copy()
     w, h = image_size
@@ -393,6 +389,31 @@ def _mean_depth(depth) -> np.ndarray:
     d = np.asarray(depth, float)
     mean = (d[..., 0] + d[..., 1]) / 2  # the same bits as mean(-1) over two entries
     return np.where(np.isfinite(mean), mean, np.inf)
+
+
+def _cut_outlines(outlines: np.ndarray, cutters: np.ndarray, nearer: np.ndarray) -> np.ndarray:
+    """(links,) each outline less the union of its ``nearer`` cutters. Only the cutters that meet an
+    outline take part (most nearer pills only come within the covers' margin), and a single one is
+    subtracted without a union: the same areas to rounding; an outline that none meets is kept."""
+    out = outlines.copy()
+    i, j = np.nonzero(nearer)
+    if not len(i):
+        return out
+    meets = shapely.intersects(outlines[i], cutters[j])
+    i, j = i[meets], j[meets]
+    if not len(i):
+        return out
+    rows, first, count = np.unique(i, return_index=True, return_counts=True)
+    others = cutters[j[first]]
+    multi = count > 1
+    if multi.any():
+        take = np.zeros((multi.sum(), nearer.shape[1]), bool)
+        row_of = np.searchsorted(rows[multi], i)
+        hit = np.isin(i, rows[multi])
+        take[row_of[hit], j[hit]] = True
+        others[multi] = row_unions(cutters, take)
+    out[rows] = shapely.difference(outlines[rows], others)
+    return out
 
 
 def row_unions(geoms: np.ndarray, take: np.ndarray) -> np.ndarray:
