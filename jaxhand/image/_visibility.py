@@ -40,10 +40,13 @@ class Visibility:
         visible_share: (links,) area of the truncated polygon inside the image over the outline's
             area (0 for an empty outline).
         pad_px: (links,) how far each outline is grown for its window (``window_pad`` radii).
-        nearer: (links, pills) the pills that cut each link's window (all False: none, or no
-            occlusion); its columns index ``covers``.
-        covers: (pills,) the occluding pills grown by ``occluder_margin_px`` (built only for the
-            pills that can cut a window, None for the others, which no row of ``nearer`` names).
+        nearer: (links, pills) the pills that may cut each link's window (nearer, of another chain,
+            within the margin of its box; all False: none, or no occlusion); its columns index
+            ``cutters`` and ``covers``.
+        cutters: (pills,) the outlines of every pill that may cut a window: the links', then the
+            occluders'.
+        covers: (pills,) ``cutters`` grown by ``occluder_margin_px``, each built on first use
+            (:meth:`cover_polygons`; None until then).
         cut: whether windows are cut at all (occlusion on, more than one link).
         pills: (links, 11) each pill as start (x, y), end - start, start radius, end - start
             radius, 1 / length, 1 / length², the cone's slope term, the slack (px) by which its
@@ -64,6 +67,7 @@ class Visibility:
     visible_share: np.ndarray
     pad_px: np.ndarray
     nearer: np.ndarray
+    cutters: np.ndarray
     covers: np.ndarray
     cut: bool
     pills: np.ndarray
@@ -83,6 +87,7 @@ class Visibility:
         occl = np.full(len(self.outlines), _EMPTY, dtype=object)
         rows = np.flatnonzero(self.nearer.any(1))
         if len(rows):
+            self.cover_polygons(np.flatnonzero(self.nearer[rows].any(0)))
             occl[rows] = row_unions(self.covers, self.nearer[rows])
         return shapely.difference(self.grown, occl)
 
@@ -90,8 +95,17 @@ class Visibility:
         """The visibility of the links ``at`` only (their windows still cut by every cover)."""
         return Visibility(outlines=self.outlines[at], depth=self.depth[at], order=None, visible=self.visible[at],
                           visible_share=self.visible_share[at], pad_px=self.pad_px[at], nearer=self.nearer[at],
-                          covers=self.covers, cut=self.cut, pills=self.pills[at], cover_pills=self.cover_pills,
+                          cutters=self.cutters, covers=self.covers, cut=self.cut, pills=self.pills[at], cover_pills=self.cover_pills,
                           margin_px=self.margin_px)
+
+    def cover_polygons(self, at: np.ndarray) -> np.ndarray:
+        """``covers[at]``, the missing ones buffered now, all prepared for point tests."""
+        at = np.asarray(at, int)
+        missing = at[np.equal(self.covers[at], None)]
+        if len(missing):
+            missing = np.unique(missing)
+            self.covers[missing] = shapely.buffer(self.cutters[missing], self.margin_px, quad_segs=4)
+        return _prepared(self.covers[at])
 
     def window_mask(self, points: np.ndarray) -> np.ndarray:
         """(links, ...) True where ``points[i, ...]`` (NaN: False) lies inside link i's window, the
@@ -117,7 +131,7 @@ class Visibility:
             m = self.margin_px
             lo = (m * _ARC_COS if m > 0 else 0.0) - self.cover_pills[c, 9]
             covered = _decide(pill_distance(x[r, k], y[r, k], self.cover_pills[c]), lo, m * _BUFFER_OVER,
-                              lambda n: shapely.intersects_xy(_prepared(self.covers)[c[n]], x[r[n], k[n]],
+                              lambda n: shapely.intersects_xy(self.cover_polygons(c[n]), x[r[n], k[n]],
                                                               y[r[n], k[n]]))
             own[r[covered], k[covered]] = False
         return own.reshape(lead)
@@ -348,13 +362,10 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
         if m > 0:
             # A cover lies within its outline's box grown by the margin: only the pills whose grown
             # box meets a candidate's box are buffered (the others cut no window).
-            o = nan_to_num(shapely.bounds(cutters)) + np.array([-1.0, -1.0, 1.0, 1.0]) * (m * _BUFFER_OVER + 1e-9)
-            candidate &= _boxes_meet(b, o)
-            used = np.flatnonzero(candidate.any(0))
+            # A cover lies within its outline's box grown by the margin (and a pill that only
+            # comes that near cuts nothing, decided by the pills' distances in window_mask).
+            c = nan_to_num(shapely.bounds(cutters)) + np.array([-1.0, -1.0, 1.0, 1.0]) * (m * _BUFFER_OVER + 1e-9)
             covers = np.full(P, None, dtype=object)
-            covers[used] = shapely.buffer(cutters[used], m, quad_segs=4)
-            c = np.zeros((P, 4))
-            c[used] = nan_to_num(shapely.bounds(covers[used]))
         else:
             c = nan_to_num(shapely.bounds(covers))
         # Only nearer pills of other chains whose bounding boxes meet this one's can cut it.
@@ -376,7 +387,7 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
     share = np.where(area > 0, seen_area / np.where(area > 0, area, 1.0), 0.0)
     pills = _pills(start_px, end_px, radius_start, radius_end, config)
     vis = Visibility(outlines=outlines, depth=mean_depth, order=order, visible=visible,
-                     visible_share=np.clip(share, 0.0, 1.0), pad_px=pad, nearer=nearer, covers=covers, cut=cut,
+                     visible_share=np.clip(share, 0.0, 1.0), pad_px=pad, nearer=nearer, cutters=cutters, covers=covers, cut=cut,
                      pills=pills, cover_pills=pills if cover_pills is None else cover_pills,
                      margin_px=float(config.occluder_margin_px))
     if grown is not None:
