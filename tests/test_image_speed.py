@@ -13,8 +13,8 @@ from jaxhand.image import ImageConfig, WindowOutlines, extract_features
 from jaxhand.image.internal import (
     CameraContext,
     Clock,
-    compute_visibility,
     as_grey,
+    compute_visibility,
     convex_edges,
     inside_polygons,
     observe,

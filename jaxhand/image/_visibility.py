@@ -22,7 +22,8 @@ import numpy as np
 import shapely
 
 from ._config import VisibilityConfig
-from ._xy import dot_xy, finite_xy, nan_to_num
+from ._pills import EMPTY, decide_band, pill_distance, pill_outlines, pill_table
+from ._xy import finite_xy, nan_to_num
 
 __all__ = ["Visibility", "OccluderPills", "pill_outlines", "same_chain", "compute_visibility", "window_masks",
            "row_unions"]
@@ -84,7 +85,7 @@ class Visibility:
         """(links,) window polygons: grown outline less the union of its nearer covers."""
         if not self.cut:
             return self.grown
-        occl = np.full(len(self.outlines), _EMPTY, dtype=object)
+        occl = np.full(len(self.outlines), EMPTY, dtype=object)
         rows = np.flatnonzero(self.nearer.any(1))
         if len(rows):
             self.cover_polygons(np.flatnonzero(self.nearer[rows].any(0)))
@@ -95,8 +96,8 @@ class Visibility:
         """The visibility of the links ``at`` only (their windows still cut by every cover)."""
         return Visibility(outlines=self.outlines[at], depth=self.depth[at], order=None, visible=self.visible[at],
                           visible_share=self.visible_share[at], pad_px=self.pad_px[at], nearer=self.nearer[at],
-                          cutters=self.cutters, covers=self.covers, cut=self.cut, pills=self.pills[at], cover_pills=self.cover_pills,
-                          margin_px=self.margin_px)
+                          cutters=self.cutters, covers=self.covers, cut=self.cut, pills=self.pills[at],
+                          cover_pills=self.cover_pills, margin_px=self.margin_px)
 
     def cover_polygons(self, at: np.ndarray) -> np.ndarray:
         """``covers[at]``, the missing ones buffered now, all prepared for point tests."""
@@ -120,7 +121,7 @@ class Visibility:
         y = np.where(finite, flat[..., 1], 0.0)
         pad = self.pad_px[:, None]
         lo = np.where(pad > 0, pad * _ARC_COS, 0.0) - self.pills[:, None, 9]
-        own = _decide(pill_distance(x, y, self.pills[:, None, :]), lo, pad * _BUFFER_OVER,
+        own = decide_band(pill_distance(x, y, self.pills[:, None, :]), lo, pad * _BUFFER_OVER,
                       lambda i, k: shapely.contains_xy(_prepared(self.grown)[i], x[i, k], y[i, k]))
         own &= finite
         if self.cut and self.nearer.any():
@@ -130,75 +131,20 @@ class Visibility:
             r, c = i[a], j[a]
             m = self.margin_px
             lo = (m * _ARC_COS if m > 0 else 0.0) - self.cover_pills[c, 9]
-            covered = _decide(pill_distance(x[r, k], y[r, k], self.cover_pills[c]), lo, m * _BUFFER_OVER,
+            covered = decide_band(pill_distance(x[r, k], y[r, k], self.cover_pills[c]), lo, m * _BUFFER_OVER,
                               lambda n: shapely.intersects_xy(self.cover_polygons(c[n]), x[r[n], k[n]],
                                                               y[r[n], k[n]]))
             own[r[covered], k[covered]] = False
         return own.reshape(lead)
 
 
-# One empty polygon for every empty outline (geometries are immutable; building one parses WKT).
-_EMPTY = shapely.Polygon()
 # A buffer of quad_segs=4 reaches at least this share of its distance (chords of 22.5-degree arcs).
 _ARC_COS = float(np.cos(np.pi / 8))
 # ... and at most this share past it (GEOS may drop an input vertex within 1 % of the distance).
 _BUFFER_OVER = 1.02
-# Distances within this (px) of a bound are left to shapely (rounding of the distance itself).
-_BAND_EPS = 1e-6
-# Plain Douglas-Peucker results with at most this many coordinates are redone topology-preserving
-# (the two differ only below 7; a margin).
-_FEW_COORDS = 8
-
-
 def _prepared(geoms: np.ndarray) -> np.ndarray:
     shapely.prepare(geoms)
     return geoms
-
-
-def pill_distance(x: np.ndarray, y: np.ndarray, pills: np.ndarray) -> np.ndarray:
-    """Distance of points (x, y) from the edge of pills (negative inside; about 1e12 for an empty one).
-
-    A pill is the convex hull of its two end circles, the union of the circles centred on the
-    segment with the radius interpolated linearly, so the distance is the minimum over t of
-    ``|p - c(t)| - r(t)``, a convex function of t minimised in closed form.
-
-    Args:
-        x, y: point coordinates, broadcasting against ``pills[..., 0]``.
-        pills: (..., 11) :attr:`Visibility.pills`.
-    """
-    wx, wy = x - pills[..., 0], y - pills[..., 1]
-    dx, dy = pills[..., 2], pills[..., 3]
-    h = wx * dy
-    h -= wy * dx
-    np.abs(h, out=h)
-    h *= pills[..., 8] * pills[..., 6]
-    t = wx * dx
-    t += wy * dy
-    t *= pills[..., 7]
-    t += h
-    t = np.minimum(np.maximum(t, 0.0, out=t), 1.0, out=t)
-    # The distance to the nearest circle's centre; sqrt of the sum of squares, not np.hypot (several
-    # times slower): the two differ in the last bit, far inside the band that shapely decides.
-    ex, ey = wx - t * dx, wy - t * dy
-    ex *= ex
-    ey *= ey
-    ex += ey
-    d = np.sqrt(ex, out=ex)
-    d -= pills[..., 4] + t * pills[..., 5]
-    if pills[..., 10].any():  # one end circle holds the other (or a point-like segment): the larger one
-        ends = np.minimum(np.hypot(wx, wy) - pills[..., 4], np.hypot(wx - dx, wy - dy) - pills[..., 4] - pills[..., 5])
-        d = np.where(pills[..., 10] > 0, ends, d)
-    return d
-
-
-def _decide(d: np.ndarray, lo, hi, exact) -> np.ndarray:
-    """``d < lo``: inside; ``d > hi``: outside; in between (within ``_BAND_EPS``) ``exact(*index)``."""
-    inside = d < lo - _BAND_EPS
-    band = (d <= hi + _BAND_EPS) & ~inside
-    if band.any():
-        index = np.nonzero(band)
-        inside[index] = exact(*index)
-    return inside
 
 
 def _grow(outlines: np.ndarray, pad_px: np.ndarray) -> np.ndarray:
@@ -207,87 +153,6 @@ def _grow(outlines: np.ndarray, pad_px: np.ndarray) -> np.ndarray:
     if not np.any(pad_px):
         return outlines
     return shapely.buffer(outlines, pad_px, quad_segs=4)
-
-
-def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.ndarray, radius_end: np.ndarray,
-                  arc_points: int, simplify_px: float) -> np.ndarray:
-    """Convex hulls of the projected pills, simplified (thesis figs. 4.13-4.14).
-
-    Args:
-        start_px, end_px: (links, 2) projected link ends.
-        radius_start, radius_end: (links,) radius in pixels at each end.
-        arc_points: vertices per half circle.
-        simplify_px: simplification tolerance.
-
-    Returns:
-        (links,) polygons; links with non-finite input or zero radius give empty polygons.
-    """
-    circle = _unit_circle(2 * arc_points)  # (k, 2)
-    s = np.asarray(start_px, float)
-    e = np.asarray(end_px, float)
-    rs = np.asarray(radius_start, float)
-    re = np.asarray(radius_end, float)
-    ok = (finite_xy(s) & finite_xy(e) & np.isfinite(rs) & np.isfinite(re)
-          & (rs > 0) & (re > 0))
-    cloud = np.concatenate([s[:, None] + rs[:, None, None] * circle, e[:, None] + re[:, None, None] * circle], 1)
-    cloud = np.where(ok[:, None, None], cloud, 0.0)
-    # GEOS takes the hull of the coordinates in their order whatever the geometry type; a line
-    # string is built straight from the array (a multipoint first makes one Point per vertex).
-    hulls = shapely.convex_hull(shapely.linestrings(cloud))
-    if simplify_px > 0:
-        hulls = _simplify_convex(hulls, simplify_px)
-    return np.where(ok, hulls, _EMPTY) if not ok.all() else hulls
-
-
-def _simplify_convex(hulls: np.ndarray, tolerance: float) -> np.ndarray:
-    """``shapely.simplify(hulls, tolerance)`` (topology-preserving) for convex polygons: on a convex
-    ring GEOS's plain Douglas-Peucker keeps the same vertices, starting the ring elsewhere, several
-    times faster; only where it shrinks a ring to a few vertices (the topology-preserving simplifier
-    keeps a minimum) is the topology-preserving result taken (tests/test_image_visibility.py)."""
-    simple = shapely.simplify(hulls, tolerance, preserve_topology=False)
-    few = shapely.get_num_coordinates(simple) <= _FEW_COORDS
-    if few.any():
-        simple[few] = shapely.simplify(hulls[few], tolerance)
-    return simple
-
-
-@functools.lru_cache(maxsize=8)
-def _unit_circle(k: int) -> np.ndarray:
-    """(k, 2) points evenly spaced on the unit circle, from angle 0 (kept per k, read-only)."""
-    a = 2 * np.pi * np.arange(k) / k
-    circle = np.stack([np.cos(a), np.sin(a)], -1)
-    circle.setflags(write=False)
-    return circle
-
-
-def _pills(start_px, end_px, radius_start, radius_end, config: VisibilityConfig) -> np.ndarray:
-    """(links, 11) :attr:`Visibility.pills`. The outline's hull vertices lie on the end circles, so
-    its edges cut into the pill by at most the chord depth ``r (1 - cos(pi / (2 arc_points)))``,
-    and the simplification moves them in by at most ``simplify_px`` more: the slack."""
-    s, e = np.asarray(start_px, float), np.asarray(end_px, float)
-    rs, re = np.asarray(radius_start, float), np.asarray(radius_end, float)
-    ok = finite_xy(s) & finite_xy(e) & np.isfinite(rs) & np.isfinite(re) & (rs > 0) \
-        & (re > 0)
-    far = np.array([1e12, 1e12])  # an empty pill: far from every point
-    s, e = np.where(ok[:, None], s, far), np.where(ok[:, None], e, far)
-    rs, re = np.where(ok, rs, 0.0), np.where(ok, re, 0.0)
-    out = np.empty((len(s), 11))  # filled column by column (no np.stack)
-    out[:, 0:2] = s
-    d = np.subtract(e, s, out=out[:, 2:4])
-    out[:, 4] = rs
-    dr = np.subtract(re, rs, out=out[:, 5])
-    L2 = dot_xy(d, d)
-    steep2 = L2 - dr * dr
-    ends = ~(steep2 > 0)
-    # Guard: the ends' rows divide by 1 and are then zeroed (no warnings to silence).
-    inv_len = 1.0 / np.sqrt(np.where(ends, 1.0, L2))
-    out[:, 6] = np.where(ends, 0.0, inv_len)
-    out[:, 7] = np.where(ends, 0.0, 1.0 / np.where(ends, 1.0, L2))
-    out[:, 8] = np.where(ends, 0.0, dr * inv_len / np.sqrt(np.where(ends, 1.0, steep2)))
-    out[:, 9] = np.where(ok, np.maximum(rs, re) * (1.0 - np.cos(np.pi / (2 * config.arc_points))) + config.simplify_px,
-                         0.0)
-    out[:, 10] = ends
-    return out
 
 
 def same_chain(link_frame, ancestors: np.ndarray) -> np.ndarray:
@@ -345,7 +210,7 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
                                                           config.arc_points, config.simplify_px)])
         cutter_depth = np.concatenate([mean_depth, _mean_depth(o.depth)])
         chain = np.hstack([chain, np.zeros((L, len(o.start_px)), bool)])  # an occluder is on no link's chain
-        cover_pills = _pills(np.concatenate([start_px, o.start_px]), np.concatenate([end_px, o.end_px]),
+        cover_pills = pill_table(np.concatenate([start_px, o.start_px]), np.concatenate([end_px, o.end_px]),
                              np.concatenate([radius_start, o.radius_start]),
                              np.concatenate([radius_end, o.radius_end]), config)
     P = len(cutters)
@@ -385,10 +250,10 @@ def compute_visibility(start_px: np.ndarray, end_px: np.ndarray, depth: np.ndarr
         frame = shapely.box(-0.5, -0.5, w - 0.5, h - 0.5)
         seen_area[out] = shapely.area(shapely.intersection(visible[out], frame))
     share = np.where(area > 0, seen_area / np.where(area > 0, area, 1.0), 0.0)
-    pills = _pills(start_px, end_px, radius_start, radius_end, config)
+    pills = pill_table(start_px, end_px, radius_start, radius_end, config)
     vis = Visibility(outlines=outlines, depth=mean_depth, order=order, visible=visible,
-                     visible_share=np.clip(share, 0.0, 1.0), pad_px=pad, nearer=nearer, cutters=cutters, covers=covers, cut=cut,
-                     pills=pills, cover_pills=pills if cover_pills is None else cover_pills,
+                     visible_share=np.clip(share, 0.0, 1.0), pad_px=pad, nearer=nearer, cutters=cutters, covers=covers,
+                     cut=cut, pills=pills, cover_pills=pills if cover_pills is None else cover_pills,
                      margin_px=float(config.occluder_margin_px))
     if grown is not None:
         vis.__dict__["grown"] = grown  # already built for the bounds (the cached property's slot)
