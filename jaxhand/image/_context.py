@@ -11,7 +11,6 @@ from typing import no_type_check
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-import shapely
 
 from .._errors import InputError
 from ..camera import Perspective, as_rig
@@ -24,7 +23,7 @@ from ._sampling import as_grey, sample_profiles
 from ._state import ImageState
 from ._trackers import LinkSamplers, place_link_samplers
 from ._visibility import OccluderPills, Visibility, compute_visibility, same_chain
-from ._xy import all_last, finite_xy
+from ._xy import all_last
 
 __all__ = ["CameraContext", "Observation", "observe", "observe_occluders", "end_radii", "off_other_links",
            "against_background", "as_images", "prepare", "matching_state", "layout"]
@@ -141,35 +140,9 @@ def off_other_links(obs: Observation, points: np.ndarray, links: np.ndarray | No
     """True where a point of link ``links[i]`` (``points[i, ...]``) lies outside the outline of every
     other link: other fingers, and also the neighbouring phalanges of its own finger, which near
     a bent joint widen the silhouette on the inner side."""
-    outlines = obs.visibility.outlines
-    L = len(outlines)
-    links = np.arange(L) if links is None else np.asarray(links, int)
-    pts = np.asarray(points, float)
-    flat = pts.reshape(len(pts), -1, 2)
-    finite = finite_xy(flat)
-    x, y = flat[..., 0], flat[..., 1]
-    b = shapely.bounds(outlines)  # (L, 4); NaN for an empty outline, which meets nothing
-    # Only the other outlines whose boxes meet the box of a row's points, then only the points
-    # inside such a box, are asked of shapely's prepared predicate (the same test as contains_xy
-    # of every point against every outline).
-    xs, ys = np.where(finite, x, np.nan), np.where(finite, y, np.nan)
-    with np.errstate(invalid="ignore"):  # a row of NaN points gives a NaN box, which meets nothing
-        lo_x, hi_x = np.fmin.reduce(xs, 1, initial=np.inf), np.fmax.reduce(xs, 1, initial=-np.inf)
-        lo_y, hi_y = np.fmin.reduce(ys, 1, initial=np.inf), np.fmax.reduce(ys, 1, initial=-np.inf)
-    meet = ((b[None, :, 0] <= hi_x[:, None]) & (b[None, :, 2] >= lo_x[:, None]) & (b[None, :, 1] <= hi_y[:, None])
-            & (b[None, :, 3] >= lo_y[:, None]) & (np.arange(L)[None, :] != links[:, None]))
-    covered = np.zeros(finite.shape, bool)
-    r, g = np.nonzero(meet)
-    if len(r):
-        bb = b[g][:, None, :]
-        xr, yr = x[r], y[r]
-        cand = (finite[r] & (xr >= bb[..., 0]) & (xr <= bb[..., 2]) & (yr >= bb[..., 1]) & (yr <= bb[..., 3]))
-        a, k = np.nonzero(cand)
-        if len(a):
-            shapely.prepare(outlines)
-            hit = shapely.contains_xy(outlines[g[a]], xr[a, k], yr[a, k])
-            covered[r[a[hit]], k[hit]] = True
-    return ~covered.reshape(pts.shape[:-1])
+    vis = obs.visibility
+    links = np.arange(len(vis.outlines)) if links is None else np.asarray(links, int)
+    return ~vis.inside_others(points, links)
 
 
 def against_background(obs: Observation, reach: Sequence[float]) -> np.ndarray:

@@ -108,6 +108,20 @@ class Visibility:
             self.covers[missing] = shapely.buffer(self.cutters[missing], self.margin_px, quad_segs=4)
         return _prepared(self.covers[at])
 
+    def inside_others(self, points: np.ndarray, links: np.ndarray) -> np.ndarray:
+        """(n, ...) True where ``points[i, ...]`` (NaN: False) lies inside the outline of a link other
+        than ``links[i]``: ``shapely.contains_xy`` against every other outline, decided from the
+        pills' distances and by shapely only within the band where outline and pill differ."""
+        pts = np.asarray(points, float)
+        flat = pts.reshape(len(pts), -1, 2)
+        x, y = flat[:, None, :, 0], flat[:, None, :, 1]
+        pills = self.pills[None, :, None, :]
+        inside = decide_band(pill_distance(x, y, pills), -pills[..., 9], 0.0,
+                             lambda a, g, k: shapely.contains_xy(_prepared(self.outlines)[g], flat[a, k, 0],
+                                                                 flat[a, k, 1]))
+        inside[np.arange(len(flat)), links] = False
+        return inside.any(1).reshape(pts.shape[:-1])
+
     def window_mask(self, points: np.ndarray) -> np.ndarray:
         """(links, ...) True where ``points[i, ...]`` (NaN: False) lies inside link i's window, the
         same as ``window_masks(self.windows, points)`` without building the windows: inside the
