@@ -259,8 +259,11 @@ def test_pill_outlines_keep_the_topology_preserving_vertices(arc_points, toleran
     end = start + rng.uniform(-60, 60, (n, 2)) * (rng.random((n, 1)) < 0.8)
     r0 = np.exp(rng.uniform(np.log(0.2), np.log(40), n))
     r1 = r0 * rng.uniform(0.5, 1.5, n)
+    start[:3] = np.nan   # rows without a pill: empty outlines
+    r0[3:6] = 0.0
     got = pill_outlines(start, end, r0, r1, arc_points, tolerance)
     want = shapely.simplify(pill_outlines(start, end, r0, r1, arc_points, 0.0), tolerance)
+    assert shapely.is_empty(got[:6]).all() and not shapely.is_empty(got[6:]).any()
     assert shapely.equals_exact(shapely.normalize(got), shapely.normalize(want), tolerance=0).all()
     assert (shapely.get_num_coordinates(want) <= 7).sum() > 50   # the small rings the fallback keeps are tried
 

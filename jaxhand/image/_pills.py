@@ -89,8 +89,14 @@ def pill_outlines(start_px: np.ndarray, end_px: np.ndarray, radius_start: np.nda
     re = np.asarray(radius_end, float)
     ok = (finite_xy(s) & finite_xy(e) & np.isfinite(rs) & np.isfinite(re)
           & (rs > 0) & (re > 0))
-    cloud = np.concatenate([s[:, None] + rs[:, None, None] * circle, e[:, None] + re[:, None, None] * circle], 1)
-    cloud = np.where(ok[:, None, None], cloud, 0.0)
+    k = len(circle)
+    cloud = np.empty((len(s), 2 * k, 2))   # start + r u_j, then end + r u_j, filled in place
+    np.multiply(rs[:, None, None], circle, out=cloud[:, :k])
+    np.multiply(re[:, None, None], circle, out=cloud[:, k:])
+    cloud[:, :k] += s[:, None]
+    cloud[:, k:] += e[:, None]
+    if not ok.all():
+        cloud[~ok] = 0.0
     # GEOS takes the hull of the coordinates in their order whatever the geometry type; a line
     # string is built straight from the array (a multipoint first makes one Point per vertex).
     hulls = shapely.convex_hull(shapely.linestrings(cloud))
@@ -128,9 +134,10 @@ def pill_table(start_px, end_px, radius_start, radius_end, config: VisibilityCon
     rs, re = np.asarray(radius_start, float), np.asarray(radius_end, float)
     ok = finite_xy(s) & finite_xy(e) & np.isfinite(rs) & np.isfinite(re) & (rs > 0) \
         & (re > 0)
-    far = np.array([1e12, 1e12])  # an empty pill: far from every point
-    s, e = np.where(ok[:, None], s, far), np.where(ok[:, None], e, far)
-    rs, re = np.where(ok, rs, 0.0), np.where(ok, re, 0.0)
+    if not ok.all():
+        far = np.array([1e12, 1e12])  # an empty pill: far from every point
+        s, e = np.where(ok[:, None], s, far), np.where(ok[:, None], e, far)
+        rs, re = np.where(ok, rs, 0.0), np.where(ok, re, 0.0)
     out = np.empty((len(s), 11))  # filled column by column (no np.stack)
     out[:, 0:2] = s
     d = np.subtract(e, s, out=out[:, 2:4])
@@ -144,7 +151,8 @@ def pill_table(start_px, end_px, radius_start, radius_end, config: VisibilityCon
     out[:, 6] = np.where(ends, 0.0, inv_len)
     out[:, 7] = np.where(ends, 0.0, 1.0 / np.where(ends, 1.0, L2))
     out[:, 8] = np.where(ends, 0.0, dr * inv_len / np.sqrt(np.where(ends, 1.0, steep2)))
-    out[:, 9] = np.where(ok, np.maximum(rs, re) * (1.0 - np.cos(np.pi / (2 * config.arc_points))) + config.simplify_px,
-                         0.0)
+    out[:, 9] = np.maximum(rs, re) * (1.0 - np.cos(np.pi / (2 * config.arc_points))) + config.simplify_px
+    if not ok.all():
+        out[~ok, 9] = 0.0
     out[:, 10] = ends
     return out

@@ -293,15 +293,14 @@ def _cut_outlines(outlines: np.ndarray, cutters: np.ndarray, nearer: np.ndarray)
     i, j = i[meets], j[meets]
     if not len(i):
         return out
-    rows, first, count = np.unique(i, return_index=True, return_counts=True)
-    others = cutters[j[first]]
-    multi = count > 1
+    count = np.bincount(i, minlength=len(outlines))
+    rows = np.flatnonzero(count)
+    others = cutters[j[np.searchsorted(i, rows)]]   # each row's first cutter (i is sorted)
+    multi = count[rows] > 1
     if multi.any():
-        take = np.zeros((multi.sum(), nearer.shape[1]), bool)
-        row_of = np.searchsorted(rows[multi], i)
-        hit = np.isin(i, rows[multi])
-        take[row_of[hit], j[hit]] = True
-        others[multi] = row_unions(cutters, take)
+        take = np.zeros(nearer.shape, bool)
+        take[i, j] = True
+        others[multi] = row_unions(cutters, take[rows[multi]])
     out[rows] = shapely.difference(outlines[rows], others)
     return out
 
