@@ -230,7 +230,7 @@ class HypothesisConfig:
         recover_mm: host, mm. The same for length entries (base translation, prismatic joints).
         seed: host. Seed of the recovery starts (frame k's are drawn from ``(seed, k)``).
         coarse_steps: static. Where the merit alone chooses (no image score or support judge), every start
-            runs this many iterations of the gated pass and the best alone is solved on (0: all solved).
+            runs this many iterations of the gated pass and the best one's start alone is solved (0: all are).
     """
 
     flips: int = 0

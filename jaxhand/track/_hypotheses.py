@@ -146,11 +146,12 @@ def image_merit(model: Model, rig: tuple, feats: tuple, q, fractions, scale_px, 
 
 class _Candidates(eqx.Module):
     """Every start's solve (batched :class:`_Solved`), its merit (-1: a padding slot or a failed
-    solve) and the features' value check."""
+    solve), the features' value check and the starts."""
 
     solved: _Solved
     merit: Float[Array, " k"]
     features_ok: Bool[Array, ""]
+    starts: Float[Array, "k nq"]
 
 
 def candidates(model: Model, rig: tuple, feats: tuple, ghk: GHKState, extras, extra_valid, build, fit_config,
@@ -158,7 +159,7 @@ def candidates(model: Model, rig: tuple, feats: tuple, ghk: GHKState, extras, ex
                coarse_steps: int = 0) -> _Candidates:
     """The prediction, its flips and the ``extras`` (where ``extra_valid``) solved in one vmapped
     call, each with the frame's extra solve ``terms``; with ``coarse_steps`` only that many
-    iterations of the first (gated) pass, for :func:`chosen` to finish the best."""
+    iterations of the first (gated) pass, to choose by (:func:`_chosen_jit`)."""
     fractions = fit_config.link_fractions
     q_pred = ghk.x
     starts = jnp.concatenate([q_pred[None], flip_starts(model, rig, feats, q_pred, n_flips, flip_rad, fractions),
@@ -171,7 +172,8 @@ def candidates(model: Model, rig: tuple, feats: tuple, ghk: GHKState, extras, ex
     merit = jax.vmap(lambda q: image_merit(model, rig, feats, q, fractions, numbers.robust_scale_px,
                                            numbers.rms_scale_px))(solved.q)
     merit = merit * solved.term_merit   # the measured terms judge too (solve_frame: 1 for the others)
-    return _Candidates(solved=solved, merit=jnp.where(valid & solved.ok, merit, -1.0), features_ok=features_ok(feats))
+    return _Candidates(solved=solved, merit=jnp.where(valid & solved.ok, merit, -1.0), features_ok=features_ok(feats),
+                       starts=starts)
 
 
 def _unpack(static: _Static, consts: tuple):
@@ -207,9 +209,10 @@ def _commit_jit(static: _Static, consts: tuple, cands: _Candidates, index, ghk: 
 def _chosen_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras, extra_valid, q_last,
                 terms: tuple = ()):
     """The whole frame in one call where the merit alone chooses (no host score): the candidates,
-    the winner (the first best merit, as :func:`choose` picks), with ``coarse_steps`` its solve
-    finished from its coarse result, and its commit; also every candidate's q and merit, and the
-    winner's index."""
+    the winner (the first best merit, as :func:`choose` picks) and its commit; also every
+    candidate's q and merit, and the winner's index. With ``coarse_steps`` the candidates are
+    the coarse solves, and the winner's start is solved again in full: a frame whose coarse
+    choice is the full one gives the full path's numbers."""
     (model, rig, build, fit_config, numbers, passes, use_filter, hold, priors, report_solve), \
         (n_flips, flip_rad, n_folds, coarse_steps) = _unpack(static, consts)
     feats, ghk = tuple(Features(*f) for f in feats), GHKState(*ghk)
@@ -217,7 +220,7 @@ def _chosen_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras
                        n_flips, flip_rad, n_folds, terms, coarse_steps)
     index = jnp.argmax(cands.merit)
     if coarse_steps:
-        solved = solve_frame(model, rig, feats, ghk.x, cands.solved.q[index], build, fit_config, numbers, passes,
+        solved = solve_frame(model, rig, feats, ghk.x, cands.starts[index], build, fit_config, numbers, passes,
                              priors, terms)
     else:
         solved = jax.tree_util.tree_map(lambda a: a[index], cands.solved)
