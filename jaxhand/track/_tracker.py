@@ -147,6 +147,7 @@ class Tracker:
         nl, nt = model.n_links, model.n_tips
         self._shapes = ((nl, 3), (nl,), (nl,), (nt, 2), (nt,), (nt,))
         self._finger = finger_of_link(model)
+        self._is_angle = np.asarray(model.is_angle)
 
     def _feature_arrays(self, features) -> tuple[tuple, ...]:
         """The front end's features as one tuple of :data:`FEATURE_FIELDS` arrays per camera,
@@ -194,11 +195,12 @@ class Tracker:
         committed (:mod:`jaxhand.track._hypotheses`); without a host score, all in one call."""
         rows, valid, labels = extras
         hyp = self.config.hypotheses
-        rows, valid = jnp.asarray(rows, self._dtype), jnp.asarray(valid)
+        rows, valid = np.asarray(rows, self._dtype), np.asarray(valid)   # jit takes NumPy arrays faster
         if self._choose_on_device:   # one call: the starts, the choice by merit and the commit
-            results, chosen = self._hypotheses.chosen(feats, ghk, rows, valid, state.q_last, terms)
-            qs, merit, winner = (np.asarray(a) for a in jax.device_get(chosen))
-            winner, total, t_score = int(winner), choose(merit)[1], 0.0
+            (packed, ghk_next), chosen = self._hypotheses.chosen(feats, ghk, rows, valid, state.q_last, terms)
+            packed, (qs, merit, winner) = jax.device_get((packed, chosen))   # one fetch; the filter state stays
+            results, winner, t_score = (packed, ghk_next), int(winner), 0.0
+            total = choose(merit)[1] if hyp.carry else merit
         else:
             cands = self._hypotheses.candidates(feats, ghk, rows, valid, terms)
             qs, merit = (np.asarray(a) for a in jax.device_get((cands.solved.q, cands.merit)))
@@ -207,7 +209,7 @@ class Tracker:
             t_score = time.perf_counter() - t0
             results = self._hypotheses.commit(cands, winner, ghk, state.q_last)
         carried = runners_up(qs, total, winner, hyp.carry, hyp.carry_margin, float(np.radians(hyp.carry_min_deg)),
-                             np.asarray(self.model.is_angle))
+                             self._is_angle)
         labels = ("prediction",) + ("flip",) * self._hypotheses.n_flips + ("fold",) * self._hypotheses.n_folds + labels
         return _Picked(results, labels[winner], carried, len(merit), t_score)
 
