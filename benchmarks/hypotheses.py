@@ -6,12 +6,14 @@ rendered once; the tracker runs it with the image front end for 1, 2, 4 and 8 st
 flips), and once per count with exact features (``ExactFrontEnd``, 0.5 px noise), where the solve
 is the whole cost. Per run: median ms per stage over the steady frames (the front end
 ``features``, the vmapped ``solve``, the front end's ``score``, the host's ``filter``), process
-CPU ms per frame, frames/s, and the mean joint error (deg). Peers in the same process, one run
+CPU ms per frame, frames/s, and the mean joint error (deg); the JSON also has the front end's parts
+(``features.*``). Peers in the same process, one run
 after the other. ``--experiments`` instead runs ``benchmarks/tracking.py``'s experiments (its
 ``--quick`` length) with the default settings and each ``--settings`` of ``benchmarks/devset.py``.
 
     .venv/bin/python benchmarks/hypotheses.py                      # -> results/hypotheses.json
     .venv/bin/python benchmarks/hypotheses.py --frames 20 --no-json
+    .venv/bin/python benchmarks/hypotheses.py --coarse-steps 2 --no-json   # coarse to fine
     .venv/bin/python benchmarks/hypotheses.py --experiments --settings hyp4,hyp8+carry
 """
 
@@ -49,9 +51,12 @@ def _track(seq, images, frontend, config: TrackConfig) -> dict:
     steady = reports[1:]   # frame 0 pays for compilation
     wall = [sum(v for key, v in r.timings_s.items() if "." not in key) for r in steady]
     acc = accuracy_summary(seq.model, seq.cameras, np.stack([r.q_filtered for r in reports]), seq.q[:len(reports)])
+    parts = sorted({key for r in steady for key in r.timings_s if key.startswith("features.")})
     return {"starts": reports[-1].starts, "frames": len(reports), "fps": 1.0 / float(np.median(wall)),
             "cpu_ms_per_frame": 1e3 * float(np.median(cpu[1:])),
             "median_ms": {s: 1e3 * float(np.median([r.timings_s.get(s, 0.0) for r in steady])) for s in STAGES},
+            "frontend_median_ms": {p: 1e3 * float(np.median([r.timings_s.get(p, 0.0) for r in steady]))
+                                   for p in parts},
             "compile_s": sum(v for key, v in reports[0].timings_s.items() if "." not in key),
             "joint_error_mean_deg": acc["joint_error_deg"]["mean"], "lost_frames": sum(r.lost for r in reports)}
 
@@ -61,7 +66,8 @@ def speed(args) -> list[dict]:
     images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras] for q in seq.q]
     rows = []
     for n, hyp in COUNTS.items():
-        config = TrackConfig(reextract=0).merged({"hypotheses": hyp})   # tracking.py's setting for this sequence
+        # tracking.py's setting for this sequence (coarse_steps does nothing to one start)
+        config = TrackConfig(reextract=0).merged({"hypotheses": {**hyp, "coarse_steps": args.coarse_steps}})
         for features in ("image", "exact"):
             frontend = (ImageFrontEnd(seq.model, seq.cameras, config.image) if features == "image" else
                         ExactFrontEnd(seq.model, seq.cameras, seq.q, noise_px=0.5, seed=0))
@@ -94,6 +100,8 @@ def main(argv=None) -> None:
     p.add_argument("--size", default="320x240", help="image size WxH")
     p.add_argument("--experiments", action="store_true", help="benchmarks/tracking.py's experiments per setting")
     p.add_argument("--settings", default="hyp4,hyp8+carry", help="with --experiments: devset.py settings")
+    p.add_argument("--coarse-steps", type=int, default=0, help="HypothesisConfig.coarse_steps of the runs with "
+                   "several starts (default 0: every start solved in full)")
     p.add_argument("--no-json", action="store_true")
     add_runtime_option(p)
     args = p.parse_args(argv)
@@ -115,7 +123,8 @@ def main(argv=None) -> None:
                                    "compile s", "mean deg"]))
         name = "hypotheses.json"
     if not args.no_json:
-        write_json({"environment": environment(), "frames": args.frames, "size": args.size, "runs": rows},
+        write_json({"environment": environment(), "frames": args.frames, "size": args.size,
+                    "coarse_steps": args.coarse_steps, "runs": rows},
                    RESULTS / name)
 
 

@@ -6,6 +6,9 @@
 - after a forced loss (a gap without features), recovery starts and proposals bring the error
   back, and ``track_sequence`` counts the re-initialisation;
 - with nothing to add, the hypotheses' path gives the default path's numbers;
+- where the merit alone chooses, the one-call path gives the two-call path's numbers, and its
+  coarse-to-fine variant (``coarse_steps``) equals the coarse solves plus the frame program
+  started from the best of them, and still finds a start at the truth;
 - the config section round-trips and rejects bad values; the host rules (choose, runners-up).
 """
 
@@ -37,7 +40,7 @@ from jaxhand.track import (
     save_track_config,
     track_sequence,
 )
-from jaxhand.track._compiled import FEATURE_FIELDS, FrameProgram
+from jaxhand.track._compiled import FEATURE_FIELDS, SCALARS, FrameProgram
 from jaxhand.track._hypotheses import HypothesisProgram, choose, flip_starts, runners_up
 
 DEVSET = Path(__file__).resolve().parent.parent / "data" / "mujoco"
@@ -240,7 +243,7 @@ def test_track_sequence_passes_proposals_and_counts_reinitialisations(tmp_path):
 
 def test_config_round_trip_and_errors(tmp_path):
     hyp = HypothesisConfig(flips=4, flip_deg=30.0, last_solve=True, carry=2, carry_margin=0.8, carry_min_deg=3.0,
-                           recover=8, recover_deg=12.5, recover_mm=5.0, seed=3)
+                           recover=8, recover_deg=12.5, recover_mm=5.0, seed=3, coarse_steps=3)
     config = TrackConfig(hypotheses=hyp)
     save_track_config(config, tmp_path / "c.toml")
     back = load_track_config(tmp_path / "c.toml")
@@ -250,6 +253,8 @@ def test_config_round_trip_and_errors(tmp_path):
     assert not HypothesisConfig().enabled
     with pytest.raises(jh.InputError, match="hypotheses.flips: expected an integer >= 0"):
         HypothesisConfig(flips=-1)
+    with pytest.raises(jh.InputError, match="hypotheses.coarse_steps: expected an integer >= 0"):
+        HypothesisConfig(coarse_steps=-2)
     with pytest.raises(jh.InputError, match="hypotheses.carry_margin: must lie in"):
         HypothesisConfig(carry_margin=1.5)
     with pytest.raises(jh.InputError, match="hypotheses.flip_deg: expected a finite number"):
@@ -328,3 +333,92 @@ def test_fold_starts_reflect_a_finger_hinge_across_the_image_plane():
         assert float(depth_after - cam.t[2]) == pytest.approx(-float(depth_before - cam.t[2]), abs=1e-6)
         checked += 1
     assert checked == 4   # the four MCPs (25 deg -> -25 deg); the PIP/DIP reflections leave their limits
+
+
+def _hand_run(tracker, q0, frames):
+    state, reports = tracker.init(q0), []
+    for k in range(frames):
+        state, rep = tracker.step(state, [None], k)
+        reports.append(rep)
+    return reports
+
+
+@pytest.mark.slow
+def test_one_call_gives_the_two_call_numbers():
+    seq = make_preset("full_hand_spread_flex", frames=12, size=(240, 180))
+    m, cams = seq.model, seq.cameras
+    rng = np.random.default_rng(5)
+    good = [features_from_pose(m, cams, q, noise_px=0.5, rng=rng) for q in seq.q]
+    frontend = FunctionFrontEnd(lambda images, q, state, frame: good[frame], reextracts=True)
+    config = TrackConfig(hypotheses=HypothesisConfig(flips=2, last_solve=True, carry=1))
+    runs = []
+    for on_device in (True, False):
+        tracker = Tracker(m, cams, frontend, config, dt_s=1 / 25)
+        assert tracker._choose_on_device   # no score, no support judge
+        tracker._choose_on_device = on_device
+        runs.append(_hand_run(tracker, seq.q[0], 12))
+    one, two = runs
+    for a, b in zip(one, two):
+        for name in ("q_solved", "q_filtered"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        assert (a.hypothesis, a.starts, a.rms_px, a.confidence, a.lost) == (b.hypothesis, b.starts, b.rms_px,
+                                                                             b.confidence, b.lost)
+    # the choice is not the prediction every time (so the winner's index matters)
+    assert {r.hypothesis for r in one} - {"prediction"}
+    # a front end with an image score, or the support judge, keeps the host's choice
+    assert not Tracker(m, cams, _ScoredFrontEnd(good[0], 0, 0.0), config)._choose_on_device
+    judged = config.merged({"support": {"judge_power": 1.0}})
+    assert not Tracker(m, cams, frontend, judged)._choose_on_device
+    assert not jh.ImageFrontEnd(m, cams).scores and _ScoredFrontEnd(good[0], 0, 0.0).scores
+    assert jh.ImageFrontEnd(m, cams, TrackConfig().merged({"image": {"score": {"foreground": "auto"}}}).image).scores
+
+
+@pytest.mark.slow
+def test_coarse_to_fine_is_the_coarse_solves_then_the_frame_program(hand):
+    m, rig, truth = hand
+    rng = np.random.default_rng(1)
+    feats = features_from_pose(m, rig, truth, noise_px=0.5, rng=rng)
+    q_pred = np.clip(truth + np.radians(8.0) * rng.standard_normal(m.n_q), m.q_lower, m.q_upper)
+    extras = jh.random_q(m, rng, 3, margin=0.1)
+    config = TrackConfig(hypotheses=HypothesisConfig(flips=2, flip_deg=20.0, coarse_steps=3))
+    ghk = ghk_init(jnp.asarray(q_pred))
+    ghk = (ghk.x, ghk.v, ghk.a)
+    valid = np.array([True, True, False])
+    packed, (qs, merit, winner) = HypothesisProgram(m, rig, config, 0.85, 0.04).chosen(
+        _arrays(feats), ghk, jnp.asarray(extras), jnp.asarray(valid), jnp.asarray(q_pred))
+    (q_solved, q_filtered, scalars), ghk_next = packed
+    flips = np.asarray(_flips(m, rig, feats, jnp.asarray(q_pred), 2, np.radians(20.0), config.fit.link_fractions))
+    starts = np.concatenate([q_pred[None], flips, extras])
+    # every start: 3 iterations of the gated pass alone, as the frame program runs them
+    coarse = FrameProgram(m, rig, config.merged({"fit": {"max_steps": 3}, "robust": {"passes": 0}}), 0.85, 0.04)
+    for k, q0 in enumerate(starts):
+        (q_k, _, _), _ = coarse(_arrays(feats), ghk, jnp.asarray(q_pred), jnp.asarray(q0))
+        np.testing.assert_allclose(np.asarray(qs[k]), np.asarray(q_k), rtol=0, atol=1e-10, err_msg=f"start {k}")
+    merit = np.asarray(merit)
+    assert merit[5] == -1.0 and merit[:5].min() > 0 and int(winner) == int(np.argmax(merit))
+    # ...then the best one's start solved in full by the frame program, filter and score included
+    (q_want, filtered_want, scalars_want), ghk_want = FrameProgram(m, rig, config, 0.85, 0.04)(
+        _arrays(feats), ghk, jnp.asarray(q_pred), jnp.asarray(starts[int(winner)]))
+    np.testing.assert_allclose(np.asarray(q_solved), np.asarray(q_want), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(np.asarray(q_filtered), np.asarray(filtered_want), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(np.asarray(scalars), np.asarray(scalars_want), rtol=0, atol=1e-10)
+    for a, b in zip(ghk_next, ghk_want):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-10)
+    # the coarse solves have not converged: the full solve fits the features better
+    assert float(np.asarray(scalars)[list(SCALARS).index("rms_px")]) < 1.0
+    assert np.abs(np.asarray(q_solved) - np.asarray(qs[int(winner)])).max() > 1e-3
+
+
+@pytest.mark.slow
+def test_coarse_to_fine_finds_a_start_at_the_truth(hand):
+    m, (cam,), truth = hand
+    rig = (cam, fit_camera(m, truth, R=look_at_rotation([1.0, -0.3, -0.4], [0, 0, 0])))
+    feats = features_from_pose(m, rig, truth)
+    lo, hi = np.asarray(m.q_lower), np.asarray(m.q_upper)
+    bad = lo + 0.02 * (hi - lo), hi - 0.02 * (hi - lo)
+    frontend = FunctionFrontEnd(lambda images, q, state, frame: feats, reextracts=False)
+    tracker = Tracker(m, rig, frontend, TrackConfig(reextract=0, hypotheses=HypothesisConfig(coarse_steps=2)))
+    state, rep = tracker.step(tracker.init(bad[0]), [None, None], 0, proposals=np.stack([bad[1], truth]))
+    assert rep.hypothesis == "proposal" and rep.starts == 3
+    np.testing.assert_allclose(rep.q_solved, truth, atol=1e-6)
+    assert rep.rms_px < 1e-4 and not rep.lost

@@ -37,6 +37,10 @@ def _need(ok: bool, where: str, message: str) -> None:
         raise InputError(f"{where}: {message}")
 
 
+def _flag(value, where: str) -> None:
+    _need(isinstance(value, bool), where, f"expected true or false, got {value!r}")
+
+
 @dataclasses.dataclass(frozen=True)
 class FilterConfig:
     """The g-h-k filter between frames (thesis eqs. 5.1-5.6).
@@ -67,14 +71,12 @@ class FilterConfig:
     def __post_init__(self):
         if self.theta_rate_hz is None:
             object.__setattr__(self, "theta_rate_hz", 0.0)
-        _need(isinstance(self.enabled, bool), "filter.enabled", f"expected true or false, got {self.enabled!r}")
-        _need(isinstance(self.report_solve, bool), "filter.report_solve",
-              f"expected true or false, got {self.report_solve!r}")
+        _flag(self.enabled, "filter.enabled")
+        _flag(self.report_solve, "filter.report_solve")
         _need(0.0 <= self.theta <= 1.0, "filter.theta", f"theta must lie in [0, 1], got {self.theta}")
         _need(self.theta_rate_hz >= 0, "filter.theta_rate_hz",
               f"theta_rate_hz must be > 0 Hz (or 0: per frame), got {self.theta_rate_hz}")
-        _need(isinstance(self.damp_unseen, bool), "filter.damp_unseen",
-              f"expected true or false, got {self.damp_unseen!r}")
+        _flag(self.damp_unseen, "filter.damp_unseen")
         value = self.unseen_decay_s
         _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
               and value >= 0, "filter.unseen_decay_s",
@@ -145,9 +147,8 @@ class LossConfig:
         _need(self.max_rms_px > 0, "loss.max_rms_px", f"must be > 0, got {self.max_rms_px}")
         _need(0.0 <= self.min_term_merit <= 1.0, "loss.min_term_merit",
               f"must lie in [0, 1], got {self.min_term_merit}")
-        _need(isinstance(self.hold, bool), "loss.hold", f"expected true or false, got {self.hold!r}")
-        _need(isinstance(self.score_relative, bool), "loss.score_relative",
-              f"expected true or false, got {self.score_relative!r}")
+        _flag(self.hold, "loss.hold")
+        _flag(self.score_relative, "loss.score_relative")
         _need(0.0 <= self.score_lost < self.score_good <= 1.0, "loss.score_lost",
               f"need 0 <= score_lost < score_good <= 1, got {self.score_lost}, {self.score_good}")
 
@@ -228,6 +229,8 @@ class HypothesisConfig:
         recover_deg: host, deg. Sigma of the recovery starts' joint angles around the last good pose.
         recover_mm: host, mm. The same for length entries (base translation, prismatic joints).
         seed: host. Seed of the recovery starts (frame k's are drawn from ``(seed, k)``).
+        coarse_steps: static. Where the merit alone chooses (no image score or support judge), every start
+            runs this many iterations of the gated pass and the best one's start alone is solved (0: all are).
     """
 
     flips: int = 0
@@ -242,13 +245,13 @@ class HypothesisConfig:
     recover_deg: float = 15.0
     recover_mm: float = 10.0
     seed: int = 0
+    coarse_steps: int = 0
 
     def __post_init__(self):
-        for name in ("flips", "folds", "carry", "recover", "seed"):
+        for name in ("flips", "folds", "carry", "recover", "seed", "coarse_steps"):
             _count(getattr(self, name), f"hypotheses.{name}")
         for name in ("last_solve", "rest"):
-            _need(isinstance(getattr(self, name), bool), f"hypotheses.{name}",
-                  f"expected true or false, got {getattr(self, name)!r}")
+            _flag(getattr(self, name), f"hypotheses.{name}")
         for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm"):
             value = getattr(self, name)
             _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
@@ -298,8 +301,7 @@ class LandmarkConfig:
               "landmarks.restart_px", f"expected a finite number >= 0 (0: off), got {px!r}")
         object.__setattr__(self, "restart_px", float(px))
         for name in ("restart", "propose"):
-            _need(isinstance(getattr(self, name), bool), f"landmarks.{name}",
-                  f"expected true or false, got {getattr(self, name)!r}")
+            _flag(getattr(self, name), f"landmarks.{name}")
         _need(self.fit in ("sequence", "frames"), "landmarks.fit",
               f"expected 'sequence' or 'frames', got {self.fit!r}")
 
@@ -359,10 +361,8 @@ class TrackConfig:
             check_config(self.fit)
         except InputError as err:
             raise InputError(f"fit.{str(err).removeprefix('config.')}") from None
-        _need(isinstance(self.reextract, int) and self.reextract >= 0, "reextract",
-              f"expected an integer >= 0, got {self.reextract!r}")
-        _need(isinstance(self.refresh_templates, bool), "refresh_templates",
-              f"expected true or false, got {self.refresh_templates!r}")
+        _count(self.reextract, "reextract")
+        _flag(self.refresh_templates, "refresh_templates")
 
     def __eq__(self, other) -> bool:   # by value: FitConfig holds arrays
         return isinstance(other, TrackConfig) and config_to_dict(self) == config_to_dict(other)
@@ -430,7 +430,7 @@ def _value(template, value, where: str):
     if dataclasses.is_dataclass(template):
         return _build(template, value, where)
     if isinstance(template, bool):
-        _need(isinstance(value, bool), where, f"expected true or false, got {value!r}")
+        _flag(value, where)
         return value
     if isinstance(template, tuple):
         _need(isinstance(value, (list, tuple)), where, f"expected a list, got {value!r}")

@@ -92,6 +92,12 @@ class AbstractFrontEnd(abc.ABC):
         score (the default): the tracker then judges poses by their residuals alone."""
         return None
 
+    @property
+    def scores(self) -> bool:
+        """Whether :meth:`score` may give scores (by default, whether a subclass overrides it).
+        Without them the tracker chooses among its starts in the compiled frame program."""
+        return type(self).score is not AbstractFrontEnd.score
+
     def support(self, images: Sequence[np.ndarray | None], q: np.ndarray, state: Any, margin_px: int = 1
                 ) -> ImageSupport | None:
         """The image's support of the pose ``q`` (:class:`~jaxhand.track.ImageSupport`:
@@ -162,6 +168,10 @@ class ImageFrontEnd(AbstractFrontEnd):
         if self.config.method not in TEMPLATE_SEARCHES:
             return state
         return refresh_templates(images, self.model, self.cameras, q, self.config, state)
+
+    @property
+    def scores(self) -> bool:
+        return self.config.score.enabled
 
     def score(self, images, qs, state) -> np.ndarray | None:
         """The mean over cameras of :func:`jaxhand.score.score_silhouette` of each pose (the

@@ -6,10 +6,13 @@ is judged by a robust image residual (:func:`image_merit`) times the front end's
 score when it has one (:meth:`AbstractFrontEnd.score`), and the winner goes through the loss rule
 and the filter (:func:`~jaxhand.track._compiled.finish_frame`).
 
-The host/jit split: :class:`HypothesisProgram` makes two calls per frame, the candidates
-(:func:`_candidates_jit`) and, after the host has scored them and chosen (:func:`choose`), the
-commit of the winner (:func:`_commit_jit`), whose results pack like the single-start program's.
-The default tracker (one start) never comes here.
+The host/jit split: where the front end scores poses on the host, :class:`HypothesisProgram`
+makes two calls per frame, the candidates (:func:`_candidates_jit`) and, after the host has
+scored them and chosen (:func:`choose`), the commit of the winner (:func:`_commit_jit`), whose
+results pack like the single-start program's. Where the merit alone chooses, one call does all
+three (:func:`_chosen_jit`), and with :attr:`HypothesisConfig.coarse_steps` it runs every start a
+few iterations and finishes only the best: a vmapped lane costs about what a single solve
+costs on a CPU. The default tracker (one start) never comes here.
 
 The starts, in order (their labels in :data:`LABELS`): the prediction; ``flips`` of it with the
 most poorly observed joints pushed either way (:func:`flip_starts`); then the host's extra starts
@@ -20,6 +23,7 @@ caller's proposals and, on the frames after a lost one, starts around the last g
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import equinox as eqx
@@ -142,29 +146,34 @@ def image_merit(model: Model, rig: tuple, feats: tuple, q, fractions, scale_px, 
 
 class _Candidates(eqx.Module):
     """Every start's solve (batched :class:`_Solved`), its merit (-1: a padding slot or a failed
-    solve) and the features' value check."""
+    solve), the features' value check and the starts."""
 
     solved: _Solved
     merit: Float[Array, " k"]
     features_ok: Bool[Array, ""]
+    starts: Float[Array, "k nq"]
 
 
 def candidates(model: Model, rig: tuple, feats: tuple, ghk: GHKState, extras, extra_valid, build, fit_config,
-               numbers, passes: int, priors, n_flips: int, flip_rad, n_folds: int = 0, terms: tuple = ()
-               ) -> _Candidates:
+               numbers, passes: int, priors, n_flips: int, flip_rad, n_folds: int = 0, terms: tuple = (),
+               coarse_steps: int = 0) -> _Candidates:
     """The prediction, its flips and the ``extras`` (where ``extra_valid``) solved in one vmapped
-    call, each with the frame's extra solve ``terms``."""
+    call, each with the frame's extra solve ``terms``; with ``coarse_steps`` only that many
+    iterations of the first (gated) pass, to choose by (:func:`_chosen_jit`)."""
     fractions = fit_config.link_fractions
     q_pred = ghk.x
     starts = jnp.concatenate([q_pred[None], flip_starts(model, rig, feats, q_pred, n_flips, flip_rad, fractions),
                               fold_starts(model, rig[0], q_pred, n_folds), extras])
     valid = jnp.concatenate([jnp.ones(1 + n_flips + n_folds, bool), extra_valid])
+    if coarse_steps:
+        fit_config, passes = dataclasses.replace(fit_config, max_steps=coarse_steps), 0
     solved = jax.vmap(lambda q0: solve_frame(model, rig, feats, q_pred, q0, build, fit_config, numbers, passes,
                                              priors, terms))(starts)
     merit = jax.vmap(lambda q: image_merit(model, rig, feats, q, fractions, numbers.robust_scale_px,
                                            numbers.rms_scale_px))(solved.q)
     merit = merit * solved.term_merit   # the measured terms judge too (solve_frame: 1 for the others)
-    return _Candidates(solved=solved, merit=jnp.where(valid & solved.ok, merit, -1.0), features_ok=features_ok(feats))
+    return _Candidates(solved=solved, merit=jnp.where(valid & solved.ok, merit, -1.0), features_ok=features_ok(feats),
+                       starts=starts)
 
 
 def _unpack(static: _Static, consts: tuple):
@@ -174,10 +183,17 @@ def _unpack(static: _Static, consts: tuple):
 
 @functools.partial(jax.jit, static_argnums=0)
 def _candidates_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras, extra_valid, terms: tuple = ()):
-    (model, rig, build, fit_config, numbers, passes, _, _, priors, _), (n_flips, flip_rad, n_folds) = \
+    (model, rig, build, fit_config, numbers, passes, _, _, priors, _), (n_flips, flip_rad, n_folds, _) = \
         _unpack(static, consts)
     return candidates(model, rig, tuple(Features(*f) for f in feats), GHKState(*ghk), extras, extra_valid, build,
                       fit_config, numbers, passes, priors, n_flips, flip_rad, n_folds, terms)
+
+
+def _pack(out):
+    """:func:`finish_frame`'s results packed as :func:`_frame_jit` packs them."""
+    dtype = out.q_solved.dtype
+    scalars = jnp.stack([jnp.asarray(getattr(out, name), dtype) for name in SCALARS])
+    return (out.q_solved, out.q_filtered, scalars), (out.ghk.x, out.ghk.v, out.ghk.a)
 
 
 @functools.partial(jax.jit, static_argnums=0)
@@ -185,11 +201,31 @@ def _commit_jit(static: _Static, consts: tuple, cands: _Candidates, index, ghk: 
     """The candidate ``index`` through :func:`finish_frame`, packed as :func:`_frame_jit` packs."""
     (model, _, _, _, numbers, _, use_filter, hold, _, report_solve), _ = _unpack(static, consts)
     solved = jax.tree_util.tree_map(lambda a: a[index], cands.solved)
-    out = finish_frame(model, GHKState(*ghk), q_last, solved, cands.features_ok, numbers, use_filter, hold,
-                       report_solve)
-    dtype = out.q_solved.dtype
-    scalars = jnp.stack([jnp.asarray(getattr(out, name), dtype) for name in SCALARS])
-    return (out.q_solved, out.q_filtered, scalars), (out.ghk.x, out.ghk.v, out.ghk.a)
+    return _pack(finish_frame(model, GHKState(*ghk), q_last, solved, cands.features_ok, numbers, use_filter, hold,
+                              report_solve))
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _chosen_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras, extra_valid, q_last,
+                terms: tuple = ()):
+    """The whole frame in one call where the merit alone chooses (no host score): the candidates,
+    the winner (the first best merit, as :func:`choose` picks) and its commit; also every
+    candidate's q and merit, and the winner's index. With ``coarse_steps`` the candidates are
+    the coarse solves, and the winner's start is solved again in full: a frame whose coarse
+    choice is the full one gives the full path's numbers."""
+    (model, rig, build, fit_config, numbers, passes, use_filter, hold, priors, report_solve), \
+        (n_flips, flip_rad, n_folds, coarse_steps) = _unpack(static, consts)
+    feats, ghk = tuple(Features(*f) for f in feats), GHKState(*ghk)
+    cands = candidates(model, rig, feats, ghk, extras, extra_valid, build, fit_config, numbers, passes, priors,
+                       n_flips, flip_rad, n_folds, terms, coarse_steps)
+    index = jnp.argmax(cands.merit)
+    if coarse_steps:
+        solved = solve_frame(model, rig, feats, ghk.x, cands.starts[index], build, fit_config, numbers, passes,
+                             priors, terms)
+    else:
+        solved = jax.tree_util.tree_map(lambda a: a[index], cands.solved)
+    out = finish_frame(model, ghk, q_last, solved, cands.features_ok, numbers, use_filter, hold, report_solve)
+    return _pack(out), (cands.solved.q, cands.merit, index)
 
 
 class HypothesisProgram:
@@ -199,7 +235,7 @@ class HypothesisProgram:
     def __init__(self, model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float):
         hyp = config.hypotheses
         parts = (step_constants(model, rig, config, theta, dt_s),
-                 (hyp.flips, jnp.asarray(float(np.radians(hyp.flip_deg))), hyp.folds))
+                 (hyp.flips, jnp.asarray(float(np.radians(hyp.flip_deg))), hyp.folds, hyp.coarse_steps))
         consts, static = eqx.partition(parts, eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(consts)
         self._consts, self._static = tuple(leaves), _Static((treedef, static))
@@ -212,6 +248,11 @@ class HypothesisProgram:
     def commit(self, cands: _Candidates, index: int, ghk: tuple, q_last):
         """``(q_solved, q_filtered, scalars), (x, v, a)`` of the chosen candidate."""
         return _commit_jit(self._static, self._consts, cands, jnp.asarray(index), ghk, q_last)
+
+    def chosen(self, feats: tuple, ghk: tuple, extras, extra_valid, q_last, terms: tuple = ()):
+        """``(packed results as commit's), (qs, merit, winner)`` of the frame in one call, the
+        winner chosen by the merit alone (:func:`_chosen_jit`; device arrays)."""
+        return _chosen_jit(self._static, self._consts, feats, ghk, extras, extra_valid, q_last, terms)
 
 
 def choose(merit: np.ndarray, scores: np.ndarray | None = None) -> tuple[int, np.ndarray]:

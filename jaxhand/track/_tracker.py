@@ -138,6 +138,8 @@ class Tracker:
         self.theta = config.filter.theta_per_frame(self.dt_s)
         self._program = FrameProgram(model, self.cameras, config, self.theta, self.dt_s)
         self._hypotheses = HypothesisProgram(model, self.cameras, config, self.theta, self.dt_s)
+        # no host score to judge the starts by: the frame's choice is made in its compiled program
+        self._choose_on_device = not (frontend.scores or config.support.judge_power > 0)
         self._rounds = 1 + (config.reextract if frontend.reextracts else 0)
         self._dtype = jnp.asarray(0.0).dtype   # the working precision of the compiled step
         self._lower, self._upper = np.asarray(model.q_lower), np.asarray(model.q_upper)
@@ -145,6 +147,7 @@ class Tracker:
         nl, nt = model.n_links, model.n_tips
         self._shapes = ((nl, 3), (nl,), (nl,), (nt, 2), (nt,), (nt,))
         self._finger = finger_of_link(model)
+        self._is_angle = np.asarray(model.is_angle)
 
     def _feature_arrays(self, features) -> tuple[tuple, ...]:
         """The front end's features as one tuple of :data:`FEATURE_FIELDS` arrays per camera,
@@ -189,19 +192,26 @@ class Tracker:
 
     def _solve_hypotheses(self, feats, ghk, state: TrackState, extras, images, fe_state, terms: tuple) -> _Picked:
         """Every start solved in one call, the front end's score of the candidates, the winner
-        committed (:mod:`jaxhand.track._hypotheses`)."""
+        committed (:mod:`jaxhand.track._hypotheses`); without a host score, all in one call."""
         rows, valid, labels = extras
         hyp = self.config.hypotheses
-        cands = self._hypotheses.candidates(feats, ghk, jnp.asarray(rows, self._dtype), jnp.asarray(valid), terms)
-        qs, merit = (np.asarray(a) for a in jax.device_get((cands.solved.q, cands.merit)))
-        t0 = time.perf_counter()
-        winner, total = choose(merit, self._scores(images, qs, merit, fe_state))
-        t_score = time.perf_counter() - t0
+        rows, valid = np.asarray(rows, self._dtype), np.asarray(valid)   # jit takes NumPy arrays faster
+        if self._choose_on_device:   # one call: the starts, the choice by merit and the commit
+            (packed, ghk_next), chosen = self._hypotheses.chosen(feats, ghk, rows, valid, state.q_last, terms)
+            packed, (qs, merit, winner) = jax.device_get((packed, chosen))   # one fetch; the filter state stays
+            results, winner, t_score = (packed, ghk_next), int(winner), 0.0
+            total = choose(merit)[1] if hyp.carry else merit
+        else:
+            cands = self._hypotheses.candidates(feats, ghk, rows, valid, terms)
+            qs, merit = (np.asarray(a) for a in jax.device_get((cands.solved.q, cands.merit)))
+            t0 = time.perf_counter()
+            winner, total = choose(merit, self._scores(images, qs, merit, fe_state))
+            t_score = time.perf_counter() - t0
+            results = self._hypotheses.commit(cands, winner, ghk, state.q_last)
         carried = runners_up(qs, total, winner, hyp.carry, hyp.carry_margin, float(np.radians(hyp.carry_min_deg)),
-                             np.asarray(self.model.is_angle))
+                             self._is_angle)
         labels = ("prediction",) + ("flip",) * self._hypotheses.n_flips + ("fold",) * self._hypotheses.n_folds + labels
-        return _Picked(self._hypotheses.commit(cands, winner, ghk, state.q_last), labels[winner], carried,
-                       len(merit), t_score)
+        return _Picked(results, labels[winner], carried, len(merit), t_score)
 
     def _scores(self, images, qs: np.ndarray, merit: np.ndarray, fe_state) -> np.ndarray | None:
         """The front end's image score of the candidates that solved (0 for the others), times
