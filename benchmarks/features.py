@@ -30,8 +30,10 @@ and the median stage split from :attr:`Diagnostics.timings_s`. The peer: samplin
 with one ``cv2.remap`` per profile (a Python loop) instead of one call for the frame.
 
 Front end vs reference: the same clean hand21 frames through :func:`extract_features` and through
-the frozen copy of the front end before its split and speed-up (``tests/reference_image``), calls
-interleaved, for the wssd, gaussian and imwplls searches: median wall and CPU ms per frame, the
+the frozen copy of the front end before its split and speed-up (``tests/reference_image``), each
+running all the frames in turn (blocks alternating, as a tracker runs one front end; calls
+interleaved one by one made each run on caches the other had just filled), for the wssd, gaussian
+and imwplls searches: median wall and CPU ms per frame, the
 ratio reference / new, the median CPU ms of each stage (both front ends' stage clocks read
 ``time.process_time`` during the comparison), and whether every feature came out the same (masks
 bit for bit, lines and tips to 0.01 px, weights to 1e-12 relative). Then the whole frame
@@ -261,8 +263,9 @@ class _CpuClockTime:
 
 
 def versus_reference(quick: bool) -> list[dict]:
-    """hand21 ms per frame of the front end and of its frozen reference copy, calls interleaved:
-    wall and CPU totals, and CPU per stage (each front end's ``timings_s``)."""
+    """hand21 ms per frame of the front end and of its frozen reference copy, each running the frames
+    in turn (blocks alternating): wall and CPU totals, and CPU per stage (each front end's
+    ``timings_s``)."""
     import reference_image
     import reference_image._extract as reference_extract
 
@@ -301,16 +304,16 @@ def _versus_reference_method(method, fronts, m, cam, qs, images, repeats) -> dic
     cpu = {name: [] for name in fronts}
     stages = {name: {} for name in fronts}
     for _ in range(repeats):
-        for j in range(len(qs)):
-            outs = {}
-            for name in fronts:  # new and reference alternate, so load changes hit both alike
+        outs = {}
+        for name in fronts:  # each front end runs every frame in turn (its own caches, as when tracking); the
+            for j in range(len(qs)):   # blocks alternate, so load changes hit both alike
                 c0, (t, out) = time.process_time(), time_call(calls[name][j])
                 cpu[name].append(time.process_time() - c0)
                 wall[name].append(t)
-                outs[name] = out[0]
+                outs.setdefault(name, []).append(out[0])
                 for stage, sec in out[1].timings_s.items():
                     stages[name].setdefault(stage, []).append(sec)
-            same &= _same_features(outs["new"], outs["reference"])
+        same &= all(_same_features(a, b) for a, b in zip(outs["new"], outs["reference"], strict=True))
     row = {"method": method, "frames": len(qs), "repeats": repeats, "identical_features": bool(same),
            "load_average_1min": os.getloadavg()[0]}
     for name in fronts:
