@@ -1,7 +1,9 @@
 """Frames/s against the number of hypotheses (starts solved per frame), and their accuracy.
 
 The hand21 sequence of thesis §6.2.2 (``full_hand_spread_flex``, one orthographic camera) is
-rendered once; the tracker runs it with the image front end for 1, 2, 4 and 8 starts per frame
+rendered once; the tracker runs it with that experiment's settings in ``benchmarks/tracking.py``
+(iMWPLLS front end, bounded solver, 20 steps; ``--method`` picks another search) for 1, 2, 4 and 8
+starts per frame
 (:class:`~jaxhand.track.HypothesisConfig`: the prediction alone; + the last solve; + 2 flips; + 6
 flips), and once per count with exact features (``ExactFrontEnd``, 0.5 px noise), where the solve
 is the whole cost. Per run: median ms per stage over the steady frames (the front end
@@ -65,9 +67,12 @@ def speed(args) -> list[dict]:
     seq = make_preset("full_hand_spread_flex", frames=args.frames, size=args.size)
     images = [[render_frame(seq.model, c, q, RenderConfig(antialias=3)).image for c in seq.cameras] for q in seq.q]
     rows = []
+    exp = next(e for e in tracking.EXPERIMENTS if e.name == "full_hand_spread_flex")
     for n, hyp in COUNTS.items():
-        # tracking.py's setting for this sequence (coarse_steps does nothing to one start)
-        config = TrackConfig(reextract=0).merged({"hypotheses": {**hyp, "coarse_steps": args.coarse_steps}})
+        # tracking.py's settings for this sequence (iMWPLLS, bounded, 20 steps; --method WSSD: the
+        # defaults' front end); coarse_steps does nothing to one start
+        config = tracking.track_config(exp.solver, exp.steps, 0.85, exp.reextract).merged(
+            {"hypotheses": {**hyp, "coarse_steps": args.coarse_steps}, "image": {"method": args.method}})
         for features in ("image", "exact"):
             frontend = (ImageFrontEnd(seq.model, seq.cameras, config.image) if features == "image" else
                         ExactFrontEnd(seq.model, seq.cameras, seq.q, noise_px=0.5, seed=0))
@@ -102,6 +107,8 @@ def main(argv=None) -> None:
     p.add_argument("--settings", default="hyp4,hyp8+carry", help="with --experiments: devset.py settings")
     p.add_argument("--coarse-steps", type=int, default=0, help="HypothesisConfig.coarse_steps of the runs with "
                    "several starts (default 0: every start solved in full)")
+    p.add_argument("--method", default="imwplls", help="front-end search of the speed runs (default: the hand21 "
+                   "experiment's, imwplls)")
     p.add_argument("--no-json", action="store_true")
     add_runtime_option(p)
     args = p.parse_args(argv)
@@ -124,7 +131,7 @@ def main(argv=None) -> None:
         name = "hypotheses.json"
     if not args.no_json:
         write_json({"environment": environment(), "frames": args.frames, "size": args.size,
-                    "coarse_steps": args.coarse_steps, "runs": rows},
+                    "coarse_steps": args.coarse_steps, "method": args.method, "runs": rows},
                    RESULTS / name)
 
 
