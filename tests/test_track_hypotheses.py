@@ -68,20 +68,31 @@ def _rad(m, **deg):
     return q
 
 
-@pytest.mark.slow
-def test_vmapped_starts_equal_single_solves(hand):
+def _two_flip_problem(hand, **hyp):
+    """Noisy features of the truth, a prediction 8 deg off, 3 random extra starts, a config with
+    2 flips of 20 deg (and ``hyp``) and the filter state at the prediction."""
     m, rig, truth = hand
     rng = np.random.default_rng(1)
     feats = features_from_pose(m, rig, truth, noise_px=0.5, rng=rng)
     q_pred = np.clip(truth + np.radians(8.0) * rng.standard_normal(m.n_q), m.q_lower, m.q_upper)
     extras = jh.random_q(m, rng, 3, margin=0.1)
-    config = TrackConfig(hypotheses=HypothesisConfig(flips=2, flip_deg=20.0))
+    config = TrackConfig(hypotheses=HypothesisConfig(flips=2, flip_deg=20.0, **hyp))
     ghk = ghk_init(jnp.asarray(q_pred))
-    ghk = (ghk.x, ghk.v, ghk.a)
+    return m, rig, feats, q_pred, extras, config, (ghk.x, ghk.v, ghk.a)
+
+
+def _flip_starts(m, rig, feats, q_pred, extras, config) -> tuple[np.ndarray, np.ndarray]:
+    """The two flips of ``q_pred`` and every start in the program's order."""
+    flips = np.asarray(_flips(m, rig, feats, jnp.asarray(q_pred), 2, np.radians(20.0), config.fit.link_fractions))
+    return flips, np.concatenate([q_pred[None], flips, extras])
+
+
+@pytest.mark.slow
+def test_vmapped_starts_equal_single_solves(hand):
+    m, rig, feats, q_pred, extras, config, ghk = _two_flip_problem(hand)
     multi = HypothesisProgram(m, rig, config, 0.85, 0.04)
     cands = multi.candidates(_arrays(feats), ghk, jnp.asarray(extras), jnp.ones(3, bool))
-    flips = np.asarray(_flips(m, rig, feats, jnp.asarray(q_pred), 2, np.radians(20.0), config.fit.link_fractions))
-    starts = np.concatenate([q_pred[None], flips, extras])
+    flips, starts = _flip_starts(m, rig, feats, q_pred, extras, config)
     # the flips push the most poorly observed joint (smallest Jacobian column at q_pred) both ways
     J = np.asarray(residual_jacobian(jnp.asarray(q_pred), make_residual_args(m, rig, feats, config.fit.link_fractions)))
     j = int(np.argmin(np.linalg.norm(J, axis=0)))
@@ -375,20 +386,12 @@ def test_one_call_gives_the_two_call_numbers():
 
 @pytest.mark.slow
 def test_coarse_to_fine_is_the_coarse_solves_then_the_frame_program(hand):
-    m, rig, truth = hand
-    rng = np.random.default_rng(1)
-    feats = features_from_pose(m, rig, truth, noise_px=0.5, rng=rng)
-    q_pred = np.clip(truth + np.radians(8.0) * rng.standard_normal(m.n_q), m.q_lower, m.q_upper)
-    extras = jh.random_q(m, rng, 3, margin=0.1)
-    config = TrackConfig(hypotheses=HypothesisConfig(flips=2, flip_deg=20.0, coarse_steps=3))
-    ghk = ghk_init(jnp.asarray(q_pred))
-    ghk = (ghk.x, ghk.v, ghk.a)
+    m, rig, feats, q_pred, extras, config, ghk = _two_flip_problem(hand, coarse_steps=3)
     valid = np.array([True, True, False])
     packed, (qs, merit, winner) = HypothesisProgram(m, rig, config, 0.85, 0.04).chosen(
         _arrays(feats), ghk, jnp.asarray(extras), jnp.asarray(valid), jnp.asarray(q_pred))
     (q_solved, q_filtered, scalars), ghk_next = packed
-    flips = np.asarray(_flips(m, rig, feats, jnp.asarray(q_pred), 2, np.radians(20.0), config.fit.link_fractions))
-    starts = np.concatenate([q_pred[None], flips, extras])
+    flips, starts = _flip_starts(m, rig, feats, q_pred, extras, config)
     # every start: 3 iterations of the gated pass alone, as the frame program runs them
     coarse = FrameProgram(m, rig, config.merged({"fit": {"max_steps": 3}, "robust": {"passes": 0}}), 0.85, 0.04)
     for k, q0 in enumerate(starts):
