@@ -22,6 +22,8 @@ from .._errors import InputError
 from ..image import ImageConfig
 from ..solve import FitConfig, solver_named
 from ..solve.internal import check_config
+from ._config_checks import count, flag, need
+from ._config_hypotheses import HypothesisConfig
 from ._presets import PRESETS
 from ._support import SupportConfig
 
@@ -30,15 +32,6 @@ __all__ = ["TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorCo
 
 #: The ``format_version`` written into (and required of) saved tracking configs.
 TRACK_CONFIG_VERSION = 1
-
-
-def _need(ok: bool, where: str, message: str) -> None:
-    if not ok:
-        raise InputError(f"{where}: {message}")
-
-
-def _flag(value, where: str) -> None:
-    _need(isinstance(value, bool), where, f"expected true or false, got {value!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,14 +64,14 @@ class FilterConfig:
     def __post_init__(self):
         if self.theta_rate_hz is None:
             object.__setattr__(self, "theta_rate_hz", 0.0)
-        _flag(self.enabled, "filter.enabled")
-        _flag(self.report_solve, "filter.report_solve")
-        _need(0.0 <= self.theta <= 1.0, "filter.theta", f"theta must lie in [0, 1], got {self.theta}")
-        _need(self.theta_rate_hz >= 0, "filter.theta_rate_hz",
+        flag(self.enabled, "filter.enabled")
+        flag(self.report_solve, "filter.report_solve")
+        need(0.0 <= self.theta <= 1.0, "filter.theta", f"theta must lie in [0, 1], got {self.theta}")
+        need(self.theta_rate_hz >= 0, "filter.theta_rate_hz",
               f"theta_rate_hz must be > 0 Hz (or 0: per frame), got {self.theta_rate_hz}")
-        _flag(self.damp_unseen, "filter.damp_unseen")
+        flag(self.damp_unseen, "filter.damp_unseen")
         value = self.unseen_decay_s
-        _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
               and value >= 0, "filter.unseen_decay_s",
               f"expected a finite number >= 0 (0: an unseen joint stops at once), got {value!r}")
         object.__setattr__(self, "unseen_decay_s", float(value))
@@ -105,10 +98,10 @@ class RobustConfig:
     gate_scale_px: float = 2.0
 
     def __post_init__(self):
-        _need(isinstance(self.passes, int) and self.passes >= 0, "robust.passes",
+        need(isinstance(self.passes, int) and self.passes >= 0, "robust.passes",
               f"expected an integer >= 0, got {self.passes!r}")
-        _need(self.scale_px > 0, "robust.scale_px", f"must be > 0, got {self.scale_px}")
-        _need(self.gate_scale_px >= 0, "robust.gate_scale_px", f"must be >= 0, got {self.gate_scale_px}")
+        need(self.scale_px > 0, "robust.scale_px", f"must be > 0, got {self.scale_px}")
+        need(self.gate_scale_px >= 0, "robust.gate_scale_px", f"must be >= 0, got {self.gate_scale_px}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,15 +134,15 @@ class LossConfig:
     score_relative: bool = True
 
     def __post_init__(self):
-        _need(self.rms_scale_px > 0, "loss.rms_scale_px", f"must be > 0, got {self.rms_scale_px}")
-        _need(0.0 <= self.min_valid_share <= 1.0, "loss.min_valid_share",
+        need(self.rms_scale_px > 0, "loss.rms_scale_px", f"must be > 0, got {self.rms_scale_px}")
+        need(0.0 <= self.min_valid_share <= 1.0, "loss.min_valid_share",
               f"must lie in [0, 1], got {self.min_valid_share}")
-        _need(self.max_rms_px > 0, "loss.max_rms_px", f"must be > 0, got {self.max_rms_px}")
-        _need(0.0 <= self.min_term_merit <= 1.0, "loss.min_term_merit",
+        need(self.max_rms_px > 0, "loss.max_rms_px", f"must be > 0, got {self.max_rms_px}")
+        need(0.0 <= self.min_term_merit <= 1.0, "loss.min_term_merit",
               f"must lie in [0, 1], got {self.min_term_merit}")
-        _flag(self.hold, "loss.hold")
-        _flag(self.score_relative, "loss.score_relative")
-        _need(0.0 <= self.score_lost < self.score_good <= 1.0, "loss.score_lost",
+        flag(self.hold, "loss.hold")
+        flag(self.score_relative, "loss.score_relative")
+        need(0.0 <= self.score_lost < self.score_good <= 1.0, "loss.score_lost",
               f"need 0 <= score_lost < score_good <= 1, got {self.score_lost}, {self.score_good}")
 
 
@@ -188,81 +181,16 @@ class PriorConfig:
     def __post_init__(self):
         for f in dataclasses.fields(self):
             value, signed = _off(getattr(self, f.name)), f.name == "soft_limit_margin_deg"
-            _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
                   and (signed or value >= 0), f"prior.{f.name}", f"expected a finite number >= 0 (0: off), got {value}")
             object.__setattr__(self, f.name, float(value))
-        _need(not self.information_ratio or bool(self.temporal_sigma_deg or self.temporal_sigma_mm),
+        need(not self.information_ratio or bool(self.temporal_sigma_deg or self.temporal_sigma_mm),
               "prior.information_ratio", "weighs the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
 
     @property
     def temporal(self) -> bool:
         """Whether there is a temporal prior (static)."""
         return bool(self.temporal_sigma_deg or self.temporal_sigma_mm)
-
-
-def _count(value, where: str) -> None:
-    _need(isinstance(value, int) and not isinstance(value, bool) and value >= 0, where,
-          f"expected an integer >= 0, got {value!r}")
-
-
-@dataclasses.dataclass(frozen=True)
-class HypothesisConfig:
-    """Several starts per frame, solved in one vectorised call, the best kept (thesis ch. 7, "a
-    bank of filters"; :mod:`jaxhand.track._hypotheses`). All off by default: one solve from the
-    prediction, as the thesis does. The starts: the prediction, then ``flips``, ``folds``,
-    ``last_solve``, ``rest``, the carried runners-up, the caller's proposals and, after a lost frame, ``recover``.
-
-    Attributes:
-        flips: static. Starts from the prediction with one of its most poorly observed joints
-            (smallest image-Jacobian column at the prediction) pushed by +/- ``flip_deg``, in
-            pairs, worst joint first.
-        flip_deg: traced, deg. How far a flip start pushes its joint.
-        folds: static. Starts with one hinge reflected across its fold (the one-view depth ambiguity).
-        last_solve: static. Also start from the last frame's solve.
-        rest: static. Also start from the model's default joint angles (the predicted base).
-        carry: static. Runners-up carried to the next frame as extra starts (at most this many).
-        carry_margin: host, in [0, 1]. A runner-up is carried when its merit is at least this
-            share of the winner's (the score could not decide between them).
-        carry_min_deg: host, deg. ...and it differs from the winner by more than this in some joint.
-        recover: static. Starts around the last good pose on each frame after a lost one, until
-            a frame is not lost (0: none; the prediction then is that pose alone).
-        recover_deg: host, deg. Sigma of the recovery starts' joint angles around the last good pose.
-        recover_mm: host, mm. The same for length entries (base translation, prismatic joints).
-        seed: host. Seed of the recovery starts (frame k's are drawn from ``(seed, k)``).
-        coarse_steps: static. Where the merit alone chooses (no image score or support judge), every start
-            runs this many iterations of the gated pass and the best one's start alone is solved (0: all are).
-    """
-
-    flips: int = 0
-    flip_deg: float = 25.0
-    folds: int = 0
-    last_solve: bool = False
-    rest: bool = False
-    carry: int = 0
-    carry_margin: float = 0.9
-    carry_min_deg: float = 5.0
-    recover: int = 0
-    recover_deg: float = 15.0
-    recover_mm: float = 10.0
-    seed: int = 0
-    coarse_steps: int = 0
-
-    def __post_init__(self):
-        for name in ("flips", "folds", "carry", "recover", "seed", "coarse_steps"):
-            _count(getattr(self, name), f"hypotheses.{name}")
-        for name in ("last_solve", "rest"):
-            _flag(getattr(self, name), f"hypotheses.{name}")
-        for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm"):
-            value = getattr(self, name)
-            _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-                  and value >= 0, f"hypotheses.{name}", f"expected a finite number >= 0, got {value!r}")
-        _need(0.0 <= self.carry_margin <= 1.0, "hypotheses.carry_margin",
-              f"must lie in [0, 1], got {self.carry_margin}")
-
-    @property
-    def enabled(self) -> bool:
-        """Whether any start besides the prediction is configured (static)."""
-        return bool(self.flips or self.folds or self.last_solve or self.rest or self.carry or self.recover)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -293,16 +221,16 @@ class LandmarkConfig:
 
     def __post_init__(self):
         value = _off(self.fuse_weight)
-        _need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
               and value >= 0, "landmarks.fuse_weight", f"expected a finite number >= 0 (0: off), got {value!r}")
         object.__setattr__(self, "fuse_weight", float(value))
         px = _off(self.restart_px)
-        _need(isinstance(px, (int, float)) and not isinstance(px, bool) and math.isfinite(px) and px >= 0,
+        need(isinstance(px, (int, float)) and not isinstance(px, bool) and math.isfinite(px) and px >= 0,
               "landmarks.restart_px", f"expected a finite number >= 0 (0: off), got {px!r}")
         object.__setattr__(self, "restart_px", float(px))
         for name in ("restart", "propose"):
-            _flag(getattr(self, name), f"landmarks.{name}")
-        _need(self.fit in ("sequence", "frames"), "landmarks.fit",
+            flag(getattr(self, name), f"landmarks.{name}")
+        need(self.fit in ("sequence", "frames"), "landmarks.fit",
               f"expected 'sequence' or 'frames', got {self.fit!r}")
 
 
@@ -355,14 +283,14 @@ class TrackConfig:
         for name, kind in (("fit", FitConfig), ("image", ImageConfig), ("filter", FilterConfig),
                            ("robust", RobustConfig), ("loss", LossConfig), ("prior", PriorConfig),
                            ("hypotheses", HypothesisConfig), ("landmarks", LandmarkConfig), ("support", SupportConfig)):
-            _need(isinstance(getattr(self, name), kind), name,
+            need(isinstance(getattr(self, name), kind), name,
                   f"expected a {kind.__name__}, got {type(getattr(self, name)).__name__}")
         try:
             check_config(self.fit)
         except InputError as err:
             raise InputError(f"fit.{str(err).removeprefix('config.')}") from None
-        _count(self.reextract, "reextract")
-        _flag(self.refresh_templates, "refresh_templates")
+        count(self.reextract, "reextract")
+        flag(self.refresh_templates, "refresh_templates")
 
     def __eq__(self, other) -> bool:   # by value: FitConfig holds arrays
         return isinstance(other, TrackConfig) and config_to_dict(self) == config_to_dict(other)
@@ -380,7 +308,7 @@ class TrackConfig:
         Raises:
             InputError: an unknown name (the message lists the presets).
         """
-        _need(name in PRESETS, "preset", f"unknown preset {name!r}; valid: {', '.join(PRESETS)}")
+        need(name in PRESETS, "preset", f"unknown preset {name!r}; valid: {', '.join(PRESETS)}")
         return self.merged(PRESETS[name])
 
 
@@ -430,10 +358,10 @@ def _value(template, value, where: str):
     if dataclasses.is_dataclass(template):
         return _build(template, value, where)
     if isinstance(template, bool):
-        _flag(value, where)
+        flag(value, where)
         return value
     if isinstance(template, tuple):
-        _need(isinstance(value, (list, tuple)), where, f"expected a list, got {value!r}")
+        need(isinstance(value, (list, tuple)), where, f"expected a list, got {value!r}")
         return tuple(value)
     if isinstance(template, float) and isinstance(value, int) and not isinstance(value, bool):
         return float(value)
@@ -445,6 +373,6 @@ def config_from_dict(data: dict) -> TrackConfig:
     defaults, unknown ones raise :class:`~jaxhand.InputError` with a "did you mean" hint."""
     data = dict(data)
     version = data.pop("format_version", TRACK_CONFIG_VERSION)
-    _need(version == TRACK_CONFIG_VERSION, "format_version",
+    need(version == TRACK_CONFIG_VERSION, "format_version",
           f"this jaxhand reads version {TRACK_CONFIG_VERSION}, got {version!r}")
     return _build(TrackConfig(), data, "")

@@ -1,0 +1,71 @@
+"""HypothesisConfig: the several starts per frame (:mod:`jaxhand.track._hypotheses`), a part of
+:class:`~jaxhand.TrackConfig`."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from ._config_checks import count, flag, need
+
+__all__ = ["HypothesisConfig"]
+
+
+@dataclasses.dataclass(frozen=True)
+class HypothesisConfig:
+    """Several starts per frame, solved in one vectorised call, the best kept (thesis ch. 7, "a
+    bank of filters"; :mod:`jaxhand.track._hypotheses`). All off by default: one solve from the
+    prediction, as the thesis does. The starts: the prediction, then ``flips``, ``folds``,
+    ``last_solve``, ``rest``, the carried runners-up, the caller's proposals and, after a lost frame, ``recover``.
+
+    Attributes:
+        flips: static. Starts from the prediction with one of its most poorly observed joints
+            (smallest image-Jacobian column at the prediction) pushed by +/- ``flip_deg``, in
+            pairs, worst joint first.
+        flip_deg: traced, deg. How far a flip start pushes its joint.
+        folds: static. Starts with one hinge reflected across its fold (the one-view depth ambiguity).
+        last_solve: static. Also start from the last frame's solve.
+        rest: static. Also start from the model's default joint angles (the predicted base).
+        carry: static. Runners-up carried to the next frame as extra starts (at most this many).
+        carry_margin: host, in [0, 1]. A runner-up is carried when its merit is at least this
+            share of the winner's (the score could not decide between them).
+        carry_min_deg: host, deg. ...and it differs from the winner by more than this in some joint.
+        recover: static. Starts around the last good pose on each frame after a lost one, until
+            a frame is not lost (0: none; the prediction then is that pose alone).
+        recover_deg: host, deg. Sigma of the recovery starts' joint angles around the last good pose.
+        recover_mm: host, mm. The same for length entries (base translation, prismatic joints).
+        seed: host. Seed of the recovery starts (frame k's are drawn from ``(seed, k)``).
+        coarse_steps: static. Where the merit alone chooses (no image score or support judge), every start
+            runs this many iterations of the gated pass and the best one's start alone is solved (0: all are).
+    """
+
+    flips: int = 0
+    flip_deg: float = 25.0
+    folds: int = 0
+    last_solve: bool = False
+    rest: bool = False
+    carry: int = 0
+    carry_margin: float = 0.9
+    carry_min_deg: float = 5.0
+    recover: int = 0
+    recover_deg: float = 15.0
+    recover_mm: float = 10.0
+    seed: int = 0
+    coarse_steps: int = 0
+
+    def __post_init__(self):
+        for name in ("flips", "folds", "carry", "recover", "seed", "coarse_steps"):
+            count(getattr(self, name), f"hypotheses.{name}")
+        for name in ("last_solve", "rest"):
+            flag(getattr(self, name), f"hypotheses.{name}")
+        for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm"):
+            value = getattr(self, name)
+            need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                  and value >= 0, f"hypotheses.{name}", f"expected a finite number >= 0, got {value!r}")
+        need(0.0 <= self.carry_margin <= 1.0, "hypotheses.carry_margin",
+              f"must lie in [0, 1], got {self.carry_margin}")
+
+    @property
+    def enabled(self) -> bool:
+        """Whether any start besides the prediction is configured (static)."""
+        return bool(self.flips or self.folds or self.last_solve or self.rest or self.carry or self.recover)
