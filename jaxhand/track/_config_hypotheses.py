@@ -16,7 +16,8 @@ class HypothesisConfig:
     """Several starts per frame, solved in one vectorised call, the best kept (thesis ch. 7, "a
     bank of filters"; :mod:`jaxhand.track._hypotheses`). All off by default: one solve from the
     prediction, as the thesis does. The starts: the prediction, then ``flips``, ``folds``,
-    ``last_solve``, ``rest``, the carried runners-up, the caller's proposals and, after a lost frame, ``recover``.
+    ``last_solve``, ``rest``, the carried runners-up, the caller's proposals, after a lost frame
+    ``recover`` and after a frame of low confidence the weakest finger bent (``finger_level``).
 
     Attributes:
         flips: static. Starts from the prediction with one of its most poorly observed joints
@@ -37,6 +38,13 @@ class HypothesisConfig:
         seed: host. Seed of the recovery starts (frame k's are drawn from ``(seed, k)``).
         coarse_steps: static. Where the merit alone chooses (no image score or support judge), every start
             runs this many iterations of the gated pass and the best one's start alone is solved (0: all are).
+        finger_level: host, in [0, 1]. After a frame whose confidence is below this, the next
+            frame also starts from the prediction with the finger the image supports least (the
+            support rule's per-finger score) bent by each of ``finger_deg`` (0: off). A finger
+            that lost its image is bent back towards it, the others keep their motion.
+        finger_deg: host, deg. The bends of those starts, each added to every flexion hinge of
+            the finger (axis parallel to its last hinge's) towards the wider side of the hinge's
+            range (a hand's flexion); negative: the other way.
     """
 
     flips: int = 0
@@ -52,6 +60,8 @@ class HypothesisConfig:
     recover_mm: float = 10.0
     seed: int = 0
     coarse_steps: int = 0
+    finger_level: float = 0.0
+    finger_deg: tuple[float, ...] = (20.0, 40.0, -20.0)
 
     def __post_init__(self):
         for name in ("flips", "folds", "carry", "recover", "seed", "coarse_steps"):
@@ -62,10 +72,17 @@ class HypothesisConfig:
             value = getattr(self, name)
             need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
                   and value >= 0, f"hypotheses.{name}", f"expected a finite number >= 0, got {value!r}")
-        need(0.0 <= self.carry_margin <= 1.0, "hypotheses.carry_margin",
-              f"must lie in [0, 1], got {self.carry_margin}")
+        for name in ("carry_margin", "finger_level"):
+            value = getattr(self, name)
+            need(isinstance(value, (int, float)) and not isinstance(value, bool) and 0.0 <= value <= 1.0,
+                 f"hypotheses.{name}", f"must lie in [0, 1], got {value!r}")
+        need(isinstance(self.finger_deg, tuple) and len(self.finger_deg) > 0
+             and all(isinstance(d, (int, float)) and not isinstance(d, bool) and math.isfinite(d)
+                     for d in self.finger_deg),
+             "hypotheses.finger_deg", f"expected a non-empty list of finite numbers, got {self.finger_deg!r}")
 
     @property
     def enabled(self) -> bool:
         """Whether any start besides the prediction is configured (static)."""
-        return bool(self.flips or self.folds or self.last_solve or self.rest or self.carry or self.recover)
+        return bool(self.flips or self.folds or self.last_solve or self.rest or self.carry or self.recover
+                    or self.finger_level)

@@ -17,8 +17,9 @@ costs on a CPU. The default tracker (one start) never comes here.
 The starts, in order (their labels in :data:`LABELS`): the prediction; ``flips`` of it with the
 most poorly observed joints pushed either way (:func:`flip_starts`); then the host's extra starts
 (:func:`extra_starts`): the last solve, the runners-up carried from the frame before, the
-caller's proposals and, on the frames after a lost one, starts around the last good pose
-(:func:`recovery_starts`).
+caller's proposals, on the frames after a lost one, starts around the last good pose
+(:func:`recovery_starts`) and, after a frame of low confidence, the finger the image supports least
+bent either way (:func:`finger_starts`).
 """
 
 from __future__ import annotations
@@ -43,10 +44,10 @@ from ._compiled import SCALARS, _Solved, _Static, features_ok, finish_frame, sol
 from ._config import HypothesisConfig, TrackConfig
 
 __all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "image_merit", "choose", "runners_up", "recovery_starts",
-           "extra_starts", "LABELS"]
+           "extra_starts", "flexion_hinges", "finger_starts", "LABELS"]
 
 #: The kinds of start, as :attr:`StepReport.hypothesis` names the winner's.
-LABELS = ("prediction", "flip", "fold", "last_solve", "rest", "carried", "proposal", "recover")
+LABELS = ("prediction", "flip", "fold", "last_solve", "rest", "carried", "proposal", "recover", "finger")
 
 
 def _flippable(model: Model) -> np.ndarray:
@@ -290,6 +291,32 @@ def recovery_starts(model: Model, q_good: np.ndarray, hyp: HypothesisConfig, fra
     return np.clip(starts, np.asarray(model.q_lower), np.asarray(model.q_upper))
 
 
+def flexion_hinges(model: Model, finger_of_frame: np.ndarray) -> dict[int, np.ndarray]:
+    """Per finger (:func:`~jaxhand.track._support.finger_of_frame`), the q entries of its flexion
+    hinges: the revolute joints whose axis, at the default pose, is parallel (to 25 deg) to the
+    axis of the finger's last hinge (a hand's MCP flexion, PIP and DIP; not its abduction)."""
+    axes = np.asarray(pose(model, jnp.asarray(model.q_default)).frames)[:, :3, 2]
+    hinges = [f for f in range(len(model.parents))
+              if model.joint_kinds[f] == "revolute" and model.q_index[f] >= model.n_base_q]
+    out = {}
+    for g in np.unique(finger_of_frame[finger_of_frame >= 0]):
+        own = [f for f in hinges if finger_of_frame[f] == g]
+        if own:
+            last = axes[own[-1]]
+            out[int(g)] = np.array([model.q_index[f] for f in own if abs(axes[f] @ last) > np.cos(np.radians(25))], int)
+    return out
+
+
+def finger_starts(q_pred: np.ndarray, joints: np.ndarray, bends_deg, lower: np.ndarray, upper: np.ndarray
+                  ) -> np.ndarray:
+    """(len(bends_deg), n_q) starts: ``q_pred`` with each of ``joints`` moved by each bend towards
+    the wider side of its range (a hand's flexion; a negative bend the other way), clipped into the limits."""
+    toward = np.where(np.abs(upper[joints]) >= np.abs(lower[joints]), 1.0, -1.0)
+    starts = np.tile(np.asarray(q_pred, float), (len(bends_deg), 1))
+    starts[:, joints] += np.radians(np.asarray(bends_deg, float))[:, None] * toward
+    return np.clip(starts, lower, upper)
+
+
 def check_proposals(model: Model, proposals, frame: int) -> np.ndarray:
     """A caller's starting poses as a (k, n_q) array clipped into the limits (k may be 0).
 
@@ -311,12 +338,13 @@ def check_proposals(model: Model, proposals, frame: int) -> np.ndarray:
 
 
 def extra_starts(model: Model, hyp: HypothesisConfig, q_pred: np.ndarray, q_solved: np.ndarray | None,
-                 carried: np.ndarray | None, proposals: np.ndarray | None, q_good: np.ndarray | None, frame: int
-                 ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+                 carried: np.ndarray | None, proposals: np.ndarray | None, q_good: np.ndarray | None, frame: int,
+                 finger: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     """The host's extra starts of a frame, their validity and labels: the last solve, the rest pose, the carried
     runners-up (padded to ``hyp.carry`` slots with the prediction, not valid, so the program's
-    shape does not change), the proposals and the recovery starts around ``q_good`` (None: the
-    frame before was not lost)."""
+    shape does not change), the proposals, the recovery starts around ``q_good`` (None: the
+    frame before was not lost) and the weakest finger's bends of the prediction (``finger``: its
+    flexion hinges' q entries; None: the frame before was confident)."""
     rows, valid, labels = [], [], []
 
     def add(qs, label, ok=True):
@@ -339,4 +367,7 @@ def extra_starts(model: Model, hyp: HypothesisConfig, q_pred: np.ndarray, q_solv
         add(proposals, "proposal")
     if q_good is not None and hyp.recover:
         add(recovery_starts(model, q_good, hyp, frame), "recover")
+    if finger is not None and len(finger) and hyp.finger_level:
+        add(finger_starts(q_pred, finger, hyp.finger_deg, np.asarray(model.q_lower), np.asarray(model.q_upper)),
+            "finger")
     return np.asarray(rows).reshape(-1, model.n_q), np.asarray(valid, bool), tuple(labels)

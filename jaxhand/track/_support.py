@@ -24,8 +24,8 @@ import numpy as np
 from .._errors import InputError
 from ..model import Model
 
-__all__ = ["SupportConfig", "ImageSupport", "finger_of_link", "weakest_finger", "judge_weights",
-           "support_confidence", "largest_unexplained_px", "unexplained_confidence"]
+__all__ = ["SupportConfig", "ImageSupport", "finger_of_frame", "finger_of_link", "finger_supports", "weakest_finger",
+           "judge_weights", "support_confidence", "largest_unexplained_px", "unexplained_confidence"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,29 +87,38 @@ class ImageSupport:
     unexplained_px: float = 0.0
 
 
-def finger_of_link(model: Model) -> np.ndarray:
-    """(n_links,) each link's finger: its frame's ancestor right under the base frame (as that
-    frame's index minus one); -1 for a link on the base frame itself, which no finger judges."""
+def finger_of_frame(model: Model) -> np.ndarray:
+    """(n_frames,) each frame's finger: its ancestor right under the base frame (as that frame's
+    index minus one); -1 for the base frame itself."""
     parents = model.parents
     out = []
-    for frame in model.link_frame:
-        f = frame
+    for f in range(len(parents)):
         while f > 0 and parents[f] > 0:
             f = parents[f]
         out.append(f - 1 if f > 0 else -1)
     return np.asarray(out, int)
 
 
-def weakest_finger(link_scores, finger: np.ndarray) -> float:
-    """The lowest finger support: per finger the mean of its links' scores (NaN: not judged, left
-    out; ``link_scores`` may be (cameras, links), then averaged over the cameras that judge a
-    link first). NaN when no finger has a judged link."""
+def finger_of_link(model: Model) -> np.ndarray:
+    """(n_links,) each link's finger (:func:`finger_of_frame` of its frame); -1 for a link on the
+    base frame itself, which no finger judges."""
+    return finger_of_frame(model)[np.asarray(model.link_frame, int)]
+
+
+def finger_supports(link_scores, finger: np.ndarray) -> dict[int, float]:
+    """Each judged finger's support: the mean of its links' scores (NaN: not judged, left out;
+    ``link_scores`` may be (cameras, links), then averaged over the cameras that judge a link first)."""
     s = np.asarray(link_scores, float).reshape(-1, len(finger))
     judged = np.isfinite(s)
     per_link = np.where(judged.any(0), np.where(judged, s, 0.0).sum(0) / np.maximum(judged.sum(0), 1), np.nan)
-    supports = [np.nanmean(per_link[finger == g]) for g in np.unique(finger[finger >= 0])
-                if np.isfinite(per_link[finger == g]).any()]
-    return float(min(supports)) if supports else float("nan")
+    return {int(g): float(np.nanmean(per_link[finger == g])) for g in np.unique(finger[finger >= 0])
+            if np.isfinite(per_link[finger == g]).any()}
+
+
+def weakest_finger(link_scores, finger: np.ndarray) -> float:
+    """The lowest finger support (:func:`finger_supports`); NaN when no finger has a judged link."""
+    supports = finger_supports(link_scores, finger)
+    return min(supports.values()) if supports else float("nan")
 
 
 def judge_weights(link_scores: list, finger: np.ndarray, power: float) -> np.ndarray:

@@ -39,9 +39,16 @@ from ..solve import STATUS_NAMES
 from ._compiled import FEATURE_FIELDS, SCALARS, FrameProgram
 from ._config import TrackConfig
 from ._frontend import AbstractFrontEnd, FrontEndDiagnostics
-from ._hypotheses import HypothesisProgram, check_proposals, choose, extra_starts, runners_up
+from ._hypotheses import HypothesisProgram, check_proposals, choose, extra_starts, flexion_hinges, runners_up
 from ._score import held_filter, judge_frame
-from ._support import finger_of_link, judge_weights, support_confidence, unexplained_confidence, weakest_finger
+from ._support import (
+    finger_of_frame,
+    finger_of_link,
+    finger_supports,
+    judge_weights,
+    support_confidence,
+    unexplained_confidence,
+)
 
 __all__ = ["TrackState", "StepReport", "Tracker"]
 
@@ -59,6 +66,8 @@ class TrackState:
         q_solved: the last frame's solve (a start with :attr:`HypothesisConfig.last_solve`).
         carried: the runners-up carried as extra starts (:attr:`HypothesisConfig.carry`), (m, n_q).
         lost: whether the last frame was lost (the next frames then recover, :attr:`HypothesisConfig.recover`).
+        weak_finger: the finger the image supported least on the last frame, when its confidence was
+            under :attr:`HypothesisConfig.finger_level` (the next frame bends it); -1: none.
     """
 
     ghk: GHKState
@@ -68,6 +77,7 @@ class TrackState:
     q_solved: np.ndarray | None = None
     carried: np.ndarray | None = None
     lost: bool = False
+    weak_finger: int = -1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -147,6 +157,7 @@ class Tracker:
         nl, nt = model.n_links, model.n_tips
         self._shapes = ((nl, 3), (nl,), (nl,), (nt, 2), (nt,), (nt,))
         self._finger = finger_of_link(model)
+        self._flexion = flexion_hinges(model, finger_of_frame(model))
         self._is_angle = np.asarray(model.is_angle)
 
     def _feature_arrays(self, features) -> tuple[tuple, ...]:
@@ -187,7 +198,7 @@ class Tracker:
         if not (hyp.enabled or proposals is not None):
             return None
         extras = extra_starts(self.model, hyp, np.asarray(state.ghk.x), state.q_solved, state.carried, proposals,
-                              state.q_last if state.lost else None, frame)
+                              state.q_last if state.lost else None, frame, self._flexion.get(state.weak_finger))
         return extras if len(extras[0]) or hyp.flips or hyp.folds else None   # recovery alone: a frame after a good one
 
     def _solve_hypotheses(self, feats, ghk, state: TrackState, extras, images, fe_state, terms: tuple) -> _Picked:
@@ -235,15 +246,18 @@ class Tracker:
         full[good] = scores
         return full
 
-    def _support(self, images, q, fe_state) -> float:
-        """The image's support of ``q`` as a confidence: the lower of the weakest finger's and the
-        unexplained foreground's (:mod:`jaxhand.track._support`; 1 when the front end measures none)."""
+    def _support(self, images, q, fe_state) -> tuple[float, dict[int, float]]:
+        """The image's support of ``q`` as a confidence, the lower of the weakest finger's and the
+        unexplained foreground's (:mod:`jaxhand.track._support`; 1 when the front end measures
+        none), and each finger's support."""
         config = self.config.support
         measured = self.frontend.support(images, q, fe_state, config.margin_px)
         if measured is None:
-            return 1.0
-        return min(support_confidence(weakest_finger(measured.link_score, self._finger), config),
-                   unexplained_confidence(measured.unexplained_px, config))
+            return 1.0, {}
+        fingers = finger_supports(measured.link_score, self._finger)
+        weakest = min(fingers.values()) if fingers else float("nan")
+        confidence = min(support_confidence(weakest, config), unexplained_confidence(measured.unexplained_px, config))
+        return confidence, fingers
 
     def step(self, state: TrackState, images: Sequence[np.ndarray | None], frame: int = 0, time_s: float = 0.0,
              proposals=None, terms: tuple = ()) -> tuple[TrackState, StepReport]:
@@ -299,8 +313,13 @@ class Tracker:
                                                                state.score_reference)
         if lost and not out["lost"] and self.config.loss.hold:   # lost by the image score: hold still
             filtered, ghk_next = np.asarray(state.q_last), held_filter(state.q_last)
-        if self.config.support.enabled and not lost:
-            confidence = min(confidence, self._support(images, filtered, fe_state))
+        weak, finger_level = -1, self.config.hypotheses.finger_level
+        if (self.config.support.enabled or finger_level) and not lost:
+            support, fingers = self._support(images, filtered, fe_state)
+            if self.config.support.enabled:
+                confidence = min(confidence, support)
+            if confidence < finger_level and fingers:
+                weak = min(fingers, key=fingers.get)
         if np.isfinite(image_score) or extras is not None:
             timings["score"] = picked.score_s + (time.perf_counter() - t3)
             t3 = time.perf_counter()
@@ -317,4 +336,4 @@ class Tracker:
                             starts=picked.starts, reinitialised=state.lost and not lost)
         ghk_next = jax.tree_util.tree_unflatten(self._ghk_tree, ghk_next)
         return TrackState(ghk=ghk_next, frontend_state=fe_state, q_last=filtered, score_reference=reference,
-                          q_solved=q_meas, carried=picked.carried, lost=lost), report
+                          q_solved=q_meas, carried=picked.carried, lost=lost, weak_finger=weak), report
