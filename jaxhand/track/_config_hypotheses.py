@@ -40,8 +40,9 @@ class HypothesisConfig:
             runs this many iterations of the gated pass and the best one's start alone is solved (0: all are).
         finger_level: host, in [0, 1]. After a frame whose confidence is below this, the next
             frame also starts from the prediction with the finger the image supports least (the
-            support rule's per-finger score) bent by each of ``finger_deg`` (0: off). A finger
-            that lost its image is bent back towards it, the others keep their motion.
+            support rule's per-finger score) bent by each of ``finger_deg`` (0: off), if it is a
+            planar finger (not a thumb: :func:`~jaxhand.track._hypotheses.flexion_hinges`). A
+            finger that lost its image is bent back towards it, the others keep their motion.
         finger_deg: host, deg. The bends of those starts, each added to every flexion hinge of
             the finger (axis parallel to its last hinge's) towards the wider side of the hinge's
             range (a hand's flexion); negative: the other way.

@@ -292,18 +292,20 @@ def recovery_starts(model: Model, q_good: np.ndarray, hyp: HypothesisConfig, fra
 
 
 def flexion_hinges(model: Model, finger_of_frame: np.ndarray) -> dict[int, np.ndarray]:
-    """Per finger (:func:`~jaxhand.track._support.finger_of_frame`), the q entries of its flexion
-    hinges: the revolute joints whose axis, at the default pose, is parallel (to 25 deg) to the
-    axis of the finger's last hinge (a hand's MCP flexion, PIP and DIP; not its abduction)."""
+    """Per planar finger (:func:`~jaxhand.track._support.finger_of_frame`), the q entries of its
+    flexion hinges: the revolute joints whose axis, at the default pose, is parallel (to 25 deg) to
+    the axis of the finger's last hinge (a hand's MCP flexion, PIP and DIP). A finger is planar
+    when at most one of its hinges is not a flexion hinge (its abduction): bending its flexion
+    hinges together follows its motion. A thumb, with two abduction hinges, is left out."""
     axes = np.asarray(pose(model, jnp.asarray(model.q_default)).frames)[:, :3, 2]
     hinges = [f for f in range(len(model.parents))
               if model.joint_kinds[f] == "revolute" and model.q_index[f] >= model.n_base_q]
     out = {}
     for g in np.unique(finger_of_frame[finger_of_frame >= 0]):
         own = [f for f in hinges if finger_of_frame[f] == g]
-        if own:
-            last = axes[own[-1]]
-            out[int(g)] = np.array([model.q_index[f] for f in own if abs(axes[f] @ last) > np.cos(np.radians(25))], int)
+        flexion = [f for f in own if own and abs(axes[f] @ axes[own[-1]]) > np.cos(np.radians(25))]
+        if flexion and len(own) - len(flexion) <= 1:
+            out[int(g)] = np.array([model.q_index[f] for f in flexion], int)
     return out
 
 
