@@ -49,11 +49,12 @@ SETTINGS = {
     "default": {},
     # TrackConfig.preset("robust")
     "robust": PRESETS["robust"],
-    # ... with soft limits from 10 deg inside each joint limit (TrackConfig.preset("robust-limits"))
+    # ... with soft limits from 10 deg inside each joint limit and the weakest finger bent after a
+    # frame of confidence under 0.2 (TrackConfig.preset("robust-limits"))
     "robust-limits": PRESETS["robust-limits"],
-    # ... with the weakest finger bent after a frame of confidence under 0.2 (hypotheses.finger_level)
-    "robust-limits+finger": {**PRESETS["robust-limits"],
-                             "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "finger_level": 0.2}},
+    # ... without the weakest finger's bends (the preset before 2026-12-03's finger starts)
+    "robust-limits-nofinger": {**PRESETS["robust-limits"],
+                               "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "finger_level": 0.0}},
     # ... with the foreground learned from the sequence (its median, seeded at the first pose)
     "robust+sequence": {**PRESETS["robust"], "image": {**PRESETS["robust"]["image"],
                                                        "score": {"foreground": "sequence"}}},

@@ -9,8 +9,9 @@ __all__ = ["PRESETS"]
 #: solve reported (the filter only predicts), no hold, and the weakest finger's image support in
 #: the confidence. "robust-limits": "robust" with soft limits from 10 deg inside each joint limit,
 #: up to the default pose and zero (a finger stuck at its limits mirrors a pose the view cannot
-#: tell from it): more accurate on the dev set, but the support rule, tuned on "robust", flags
-#: its frames less well.
+#: tell from it), and after a frame of confidence under 0.2 a start with the finger the image
+#: supports least bent (``hypotheses.finger_level``): a finger that took another's image is
+#: brought back. More accurate on the dev set than "robust".
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -24,6 +25,7 @@ PRESETS: dict[str, dict] = {
     "thesis": {},
     "robust": _ROBUST,
     "robust-limits": {**_ROBUST, "prior": {**_ROBUST["prior"], "soft_limit_weight": 30.0,
-                                           "soft_limit_margin_deg": -10.0}},
+                                           "soft_limit_margin_deg": -10.0},
+                      "hypotheses": {**_ROBUST["hypotheses"], "finger_level": 0.2}},
     "coupled": {"prior": {"dip_pip_weight": 4.0}},
 }
