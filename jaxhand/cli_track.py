@@ -41,7 +41,8 @@ def register(sub) -> None:
     p.add_argument("--preset", choices=tuple(PRESETS),
                    help="named settings on top of --config or the defaults: 'robust' for images jaxhand did not "
                         "draw (the silhouette term, six starts per frame; slower), 'robust-limits' the same with "
-                        "soft limits inside the joint ranges, 'coupled' the DIP-PIP coupling alone (no drift on "
+                        "soft limits inside the joint ranges and the weakest finger restarted after a doubtful "
+                        "frame, 'coupled' the DIP-PIP coupling alone (no drift on "
                         "long slow runs), 'thesis' the documents' tracker (default: thesis)")
     defaults = TrackConfig()   # --help shows the defaults of the config itself
     p.add_argument("--method",
