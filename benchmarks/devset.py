@@ -49,12 +49,13 @@ SETTINGS = {
     "default": {},
     # TrackConfig.preset("robust")
     "robust": PRESETS["robust"],
-    # ... with soft limits from 10 deg inside each joint limit and the weakest finger bent after a
-    # frame of confidence under 0.2 (TrackConfig.preset("robust-limits"))
+    # ... with soft limits from 10 deg inside each joint limit, the weakest finger bent after a
+    # frame of confidence under 0.2 and loss.valid_share_good 0.5 (TrackConfig.preset("robust-limits"))
     "robust-limits": PRESETS["robust-limits"],
-    # ... without the weakest finger's bends (the preset before 2026-12-03's finger starts)
+    # ... as it was before 2026-12-03's second session (no finger starts, the share itself in the confidence)
     "robust-limits-nofinger": {**PRESETS["robust-limits"],
-                               "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "finger_level": 0.0}},
+                               "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "finger_level": 0.0},
+                               "loss": {**PRESETS["robust-limits"]["loss"], "valid_share_good": 1.0}},
     # ... with the foreground learned from the sequence (its median, seeded at the first pose)
     "robust+sequence": {**PRESETS["robust"], "image": {**PRESETS["robust"]["image"],
                                                        "score": {"foreground": "sequence"}}},

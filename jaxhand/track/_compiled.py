@@ -92,6 +92,7 @@ class _StepNumbers(eqx.Module):
     min_valid_share: Float[Array, ""]
     max_rms_px: Float[Array, ""]
     min_term_merit: Float[Array, ""]
+    valid_share_good: Float[Array, ""]
     keep_unseen: Float[Array, ""]    # exp(-dt_s / FilterConfig.unseen_decay_s)
     damp_unseen: bool = eqx.field(static=True, default=False)
 
@@ -268,7 +269,7 @@ def finish_frame(model: Model, ghk: GHKState, q_last, solved: _Solved, checks_ok
     (with ``report_solve`` the solve is reported and predicted from; with ``hold``, a lost frame
     holds ``q_last`` still)."""
     conf, lost = frame_score(solved.rms_px, solved.valid_share, numbers.rms_scale_px, numbers.min_valid_share,
-                             numbers.max_rms_px)
+                             numbers.max_rms_px, share_good=numbers.valid_share_good)
     # the measured terms (the silhouette) judge the frame too: their merit scales the confidence
     conf = conf * solved.term_merit
     lost = lost | (solved.term_merit < numbers.min_term_merit)
@@ -341,7 +342,8 @@ def step_constants(model: Model, rig: tuple, config: TrackConfig, theta: float, 
     keep_unseen = float(np.exp(-dt_s / fc.unseen_decay_s)) if fc.unseen_decay_s > 0 else 0.0
     numbers = _StepNumbers(*(jnp.asarray(float(v)) for v in (
         theta, dt_s, config.robust.scale_px, config.robust.gate_scale_px, config.loss.rms_scale_px,
-        config.loss.min_valid_share, config.loss.max_rms_px, config.loss.min_term_merit, keep_unseen)),
+        config.loss.min_valid_share, config.loss.max_rms_px, config.loss.min_term_merit, config.loss.valid_share_good,
+        keep_unseen)),
         damp_unseen=fc.enabled and fc.damp_unseen)
     priors = _Priors.of(model, config.prior)
     return (model, rig, build, fit_config, numbers, config.robust.passes, config.filter.enabled, config.loss.hold,

@@ -111,6 +111,9 @@ class LossConfig:
     Attributes:
         rms_scale_px: traced, px. The residual RMS at which the confidence halves.
         min_valid_share: traced, in [0, 1]. Below this share of valid feature slots the frame is lost.
+        valid_share_good: traced, in (0, 1]. The share of valid feature slots at and above which
+            the share does not lower the confidence (1: the share itself scales it). Hands
+            crossing each other hide half their features on frames that are right.
         max_rms_px: traced, px. Above this residual RMS the frame is lost.
         min_term_merit: traced, in [0, 1]. The measured terms (``image.silhouette_term``) scale
             the confidence by their merit at the solve; below this merit the frame is lost.
@@ -126,6 +129,7 @@ class LossConfig:
 
     rms_scale_px: float = 2.0
     min_valid_share: float = 0.15
+    valid_share_good: float = 1.0
     max_rms_px: float = 6.0
     min_term_merit: float = 0.1
     hold: bool = True
@@ -137,6 +141,8 @@ class LossConfig:
         need(self.rms_scale_px > 0, "loss.rms_scale_px", f"must be > 0, got {self.rms_scale_px}")
         need(0.0 <= self.min_valid_share <= 1.0, "loss.min_valid_share",
               f"must lie in [0, 1], got {self.min_valid_share}")
+        need(0.0 < self.valid_share_good <= 1.0, "loss.valid_share_good",
+             f"must lie in (0, 1], got {self.valid_share_good}")
         need(self.max_rms_px > 0, "loss.max_rms_px", f"must be > 0, got {self.max_rms_px}")
         need(0.0 <= self.min_term_merit <= 1.0, "loss.min_term_merit",
               f"must lie in [0, 1], got {self.min_term_merit}")

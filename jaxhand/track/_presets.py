@@ -11,7 +11,8 @@ __all__ = ["PRESETS"]
 #: up to the default pose and zero (a finger stuck at its limits mirrors a pose the view cannot
 #: tell from it), and after a frame of confidence under 0.2 a start with the finger the image
 #: supports least bent (``hypotheses.finger_level``): a finger that took another's image is
-#: brought back. More accurate on the dev set than "robust".
+#: brought back; half the feature slots valid is enough for full confidence (fingers crossing
+#: hide the rest on right frames). More accurate on the dev set than "robust".
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -26,6 +27,7 @@ PRESETS: dict[str, dict] = {
     "robust": _ROBUST,
     "robust-limits": {**_ROBUST, "prior": {**_ROBUST["prior"], "soft_limit_weight": 30.0,
                                            "soft_limit_margin_deg": -10.0},
-                      "hypotheses": {**_ROBUST["hypotheses"], "finger_level": 0.2}},
+                      "hypotheses": {**_ROBUST["hypotheses"], "finger_level": 0.2},
+                      "loss": {**_ROBUST["loss"], "valid_share_good": 0.5}},
     "coupled": {"prior": {"dip_pip_weight": 4.0}},
 }

@@ -12,14 +12,15 @@ from ._config import LossConfig, TrackConfig
 __all__ = ["frame_score", "confidence_of", "judge_frame", "held_filter"]
 
 
-def frame_score(rms_px, valid_share, rms_scale_px, min_valid_share, max_rms_px, xp=jnp):
+def frame_score(rms_px, valid_share, rms_scale_px, min_valid_share, max_rms_px, xp=jnp, share_good=1.0):
     """Confidence in [0, 1] and the loss flag of a frame from its residual RMS (px) and its share
-    of valid feature slots: ``confidence = share / (1 + (rms / rms_scale_px)^2)`` (0 when not
-    finite); lost when ``share < min_valid_share``, ``rms > max_rms_px`` or the RMS is not finite.
+    of valid feature slots: ``confidence = min(1, share / share_good) / (1 + (rms / rms_scale_px)^2)``
+    (0 when not finite); lost when ``share < min_valid_share``, ``rms > max_rms_px`` or the RMS is
+    not finite.
 
     ``xp`` is ``jax.numpy`` inside the compiled step and ``numpy`` on the host.
     """
-    conf = valid_share / (1.0 + (rms_px / rms_scale_px) ** 2)
+    conf = xp.minimum(valid_share / share_good, 1.0) / (1.0 + (rms_px / rms_scale_px) ** 2)
     conf = xp.where(xp.isfinite(conf), conf, 0.0)
     lost = (valid_share < min_valid_share) | (rms_px > max_rms_px) | ~xp.isfinite(rms_px)
     return conf, lost
@@ -29,7 +30,7 @@ def confidence_of(rms_px: float, valid_share: float, config: LossConfig | TrackC
     """:func:`frame_score` on the host with the settings of ``config`` (or ``config.loss``)."""
     loss = config.loss if isinstance(config, TrackConfig) else config
     conf, lost = frame_score(np.float64(rms_px), np.float64(valid_share), loss.rms_scale_px, loss.min_valid_share,
-                             loss.max_rms_px, xp=np)
+                             loss.max_rms_px, xp=np, share_good=loss.valid_share_good)
     return float(conf), bool(lost)
 
 
