@@ -14,7 +14,9 @@ fit shared by the runs). Runs, each from frame 0's landmark pose:
   first weight;
 - ``r``: ``b`` with the robust preset and the foreground learned from the sequence
   (``image.score.foreground = "sequence"``: the video's camera is still); ``rc<W>``: ``r`` +
-  ``--fuse-landmarks W``, for the first weight.
+  ``--fuse-landmarks W``, for the first weight;
+- ``l``: ``b`` with the robust-limits preset (its foreground as the preset has it); ``lc<W>``: ``l``
+  + ``--fuse-landmarks W``, for the first weight.
 
 On the fingers: every one of the 21 projected model landmark points (joint centres, fingertips
 on the skin, the wrist) within 15 px of MediaPipe's (``jaxhand.landmarks.landmark_agreement``).
@@ -70,6 +72,10 @@ def runs(weights) -> dict[str, TrackConfig]:
     out["r"] = dataclasses.replace(robust, landmarks=LandmarkConfig())
     if weights:
         out[f"rc{weights[0]:g}"] = dataclasses.replace(robust, landmarks=LandmarkConfig(fuse_weight=weights[0]))
+    limits = TrackConfig().preset("robust-limits")
+    out["l"] = dataclasses.replace(limits, landmarks=LandmarkConfig())
+    if weights:
+        out[f"lc{weights[0]:g}"] = dataclasses.replace(limits, landmarks=LandmarkConfig(fuse_weight=weights[0]))
     return out
 
 
@@ -77,7 +83,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=621, help="frames of the video to track (default: all 621)")
     ap.add_argument("--weights", default="1,10", help="--fuse-landmarks weights of the c runs")
-    ap.add_argument("--runs", default=None, help="comma-separated subset of a,b,b15,c<W>,c<W>nf,r,rc<W>")
+    ap.add_argument("--runs", default=None, help="comma-separated subset of a,b,b15,c<W>,c<W>nf,r,rc<W>,l,lc<W>")
     ap.add_argument("--out", default="/tmp/jaxhand_real_video", help="folder for the runs' outputs")
     ap.add_argument("--merge", action="store_true", help="add the runs to those of an earlier results file")
     args = ap.parse_args()

@@ -91,6 +91,7 @@ class _WeakIndex(FunctionFrontEnd):
         return ImageSupport(link_score=score[None])
 
 
+@pytest.mark.slow
 def test_the_tracker_bends_the_weakest_finger_after_a_low_confidence_frame():
     m = jh.builtin_model("hand21")
     truth = jh.random_q(m, np.random.default_rng(3), margin=0.25)
