@@ -15,7 +15,7 @@ fit shared by the runs). Runs, each from frame 0's landmark pose:
 - ``r``: ``b`` with the robust preset and the foreground learned from the sequence
   (``image.score.foreground = "sequence"``: the video's camera is still); ``rc<W>``: ``r`` +
   ``--fuse-landmarks W``, for the first weight;
-- ``l``: ``b`` with the robust-limits preset (its foreground as the preset has it); ``lc<W>``: ``l``
+- ``l``: ``r`` with the robust-limits preset instead of robust; ``lc<W>``: ``l``
   + ``--fuse-landmarks W``, for the first weight.
 
 On the fingers: every one of the 21 projected model landmark points (joint centres, fingertips
@@ -72,7 +72,7 @@ def runs(weights) -> dict[str, TrackConfig]:
     out["r"] = dataclasses.replace(robust, landmarks=LandmarkConfig())
     if weights:
         out[f"rc{weights[0]:g}"] = dataclasses.replace(robust, landmarks=LandmarkConfig(fuse_weight=weights[0]))
-    limits = TrackConfig().preset("robust-limits")
+    limits = TrackConfig().preset("robust-limits").merged({"image": {"score": {"foreground": "sequence"}}})
     out["l"] = dataclasses.replace(limits, landmarks=LandmarkConfig())
     if weights:
         out[f"lc{weights[0]:g}"] = dataclasses.replace(limits, landmarks=LandmarkConfig(fuse_weight=weights[0]))
