@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import json
-import math
 
 import numpy as np
 
@@ -22,7 +21,7 @@ from .._errors import InputError
 from ..image import ImageConfig
 from ..solve import FitConfig, solver_named
 from ..solve.internal import check_config
-from ._config_checks import count, flag, need
+from ._config_checks import count, finite_number, flag, need
 from ._config_hypotheses import HypothesisConfig
 from ._presets import PRESETS
 from ._support import SupportConfig
@@ -71,8 +70,7 @@ class FilterConfig:
               f"theta_rate_hz must be > 0 Hz (or 0: per frame), got {self.theta_rate_hz}")
         flag(self.damp_unseen, "filter.damp_unseen")
         value = self.unseen_decay_s
-        need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-              and value >= 0, "filter.unseen_decay_s",
+        need(finite_number(value) and value >= 0, "filter.unseen_decay_s",
               f"expected a finite number >= 0 (0: an unseen joint stops at once), got {value!r}")
         object.__setattr__(self, "unseen_decay_s", float(value))
 
@@ -187,8 +185,8 @@ class PriorConfig:
     def __post_init__(self):
         for f in dataclasses.fields(self):
             value, signed = _off(getattr(self, f.name)), f.name == "soft_limit_margin_deg"
-            need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-                  and (signed or value >= 0), f"prior.{f.name}", f"expected a finite number >= 0 (0: off), got {value}")
+            need(finite_number(value) and (signed or value >= 0), f"prior.{f.name}",
+                 f"expected a finite number >= 0 (0: off), got {value}")
             object.__setattr__(self, f.name, float(value))
         need(not self.information_ratio or bool(self.temporal_sigma_deg or self.temporal_sigma_mm),
               "prior.information_ratio", "weighs the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
@@ -227,11 +225,11 @@ class LandmarkConfig:
 
     def __post_init__(self):
         value = _off(self.fuse_weight)
-        need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-              and value >= 0, "landmarks.fuse_weight", f"expected a finite number >= 0 (0: off), got {value!r}")
+        need(finite_number(value) and value >= 0, "landmarks.fuse_weight",
+             f"expected a finite number >= 0 (0: off), got {value!r}")
         object.__setattr__(self, "fuse_weight", float(value))
         px = _off(self.restart_px)
-        need(isinstance(px, (int, float)) and not isinstance(px, bool) and math.isfinite(px) and px >= 0,
+        need(finite_number(px) and px >= 0,
               "landmarks.restart_px", f"expected a finite number >= 0 (0: off), got {px!r}")
         object.__setattr__(self, "restart_px", float(px))
         for name in ("restart", "propose"):

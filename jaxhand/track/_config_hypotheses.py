@@ -4,9 +4,8 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 
-from ._config_checks import count, flag, need
+from ._config_checks import count, finite_number, flag, need
 
 __all__ = ["HypothesisConfig"]
 
@@ -71,15 +70,14 @@ class HypothesisConfig:
             flag(getattr(self, name), f"hypotheses.{name}")
         for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm"):
             value = getattr(self, name)
-            need(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-                  and value >= 0, f"hypotheses.{name}", f"expected a finite number >= 0, got {value!r}")
+            need(finite_number(value) and value >= 0, f"hypotheses.{name}",
+                 f"expected a finite number >= 0, got {value!r}")
         for name in ("carry_margin", "finger_level"):
             value = getattr(self, name)
-            need(isinstance(value, (int, float)) and not isinstance(value, bool) and 0.0 <= value <= 1.0,
+            need(finite_number(value) and 0.0 <= value <= 1.0,
                  f"hypotheses.{name}", f"must lie in [0, 1], got {value!r}")
         need(isinstance(self.finger_deg, tuple) and len(self.finger_deg) > 0
-             and all(isinstance(d, (int, float)) and not isinstance(d, bool) and math.isfinite(d)
-                     for d in self.finger_deg),
+             and all(finite_number(d) for d in self.finger_deg),
              "hypotheses.finger_deg", f"expected a non-empty list of finite numbers, got {self.finger_deg!r}")
 
     @property

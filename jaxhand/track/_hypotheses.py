@@ -303,7 +303,7 @@ def flexion_hinges(model: Model, finger_of_frame: np.ndarray) -> dict[int, np.nd
     out = {}
     for g in np.unique(finger_of_frame[finger_of_frame >= 0]):
         own = [f for f in hinges if finger_of_frame[f] == g]
-        flexion = [f for f in own if own and abs(axes[f] @ axes[own[-1]]) > np.cos(np.radians(25))]
+        flexion = [f for f in own if abs(axes[f] @ axes[own[-1]]) > np.cos(np.radians(25))]
         if flexion and len(own) - len(flexion) <= 1:
             out[int(g)] = np.array([model.q_index[f] for f in flexion], int)
     return out
