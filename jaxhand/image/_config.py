@@ -244,6 +244,12 @@ class TipConfig:
             axis lie off every other link's outline: over another link the tip's boundary is
             weak or missing and the strongest derivative lies elsewhere (thesis §4.4 assumes a
             clear tip).
+        over_farther: a tip whose ``beyond`` points lie only on other fingers' links farther from
+            the camera than its own (a thumb across the fingers) still counts where its terminal
+            link's line was measured and that link's projection is at least this many of its
+            radii long: its boundary is an occluding contour of its own, and without its tip
+            such a finger may slide along its line (a fingertip pointing at the camera, seen end
+            on, has no such boundary). 0 (the default, the thesis's rule): such tips never count.
     """
 
     points: int = 32
@@ -252,6 +258,7 @@ class TipConfig:
     min_strength: float = 8.0
     need_line: bool = False
     beyond: tuple[float, ...] = (1.1, 1.4)
+    over_farther: float = 0.0
 
     def __post_init__(self):
         w = "TipConfig"
@@ -261,6 +268,9 @@ class TipConfig:
         _check(self.sigma >= 0, f"{w}.sigma", f"must be >= 0, got {self.sigma!r}")
         _check(self.min_strength >= 0, f"{w}.min_strength", f"must be >= 0, got {self.min_strength!r}")
         _check(all(a > 0 for a in self.beyond), f"{w}.beyond", f"distances must be > 0, got {self.beyond!r}")
+        _check(isinstance(self.over_farther, (int, float)) and not isinstance(self.over_farther, bool)
+               and 0 <= self.over_farther < float("inf"), f"{w}.over_farther",
+               f"need a finite number >= 0 (0: off), got {self.over_farther!r}")
 
 
 @dataclasses.dataclass(frozen=True)

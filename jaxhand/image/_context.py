@@ -136,13 +136,15 @@ def observe(ctx: CameraContext, q: np.ndarray) -> Observation:
                        visibility=vis, values=values, usable=usable, window=window)
 
 
-def off_other_links(obs: Observation, points: np.ndarray, links: np.ndarray | None = None) -> np.ndarray:
+def off_other_links(obs: Observation, points: np.ndarray, links: np.ndarray | None = None,
+                    ignore: np.ndarray | None = None) -> np.ndarray:
     """True where a point of link ``links[i]`` (``points[i, ...]``) lies outside the outline of every
     other link: other fingers, and also the neighbouring phalanges of its own finger, which near
-    a bent joint widen the silhouette on the inner side."""
+    a bent joint widen the silhouette on the inner side (``ignore`` (n, links): links that do not
+    count for point row i)."""
     vis = obs.visibility
     links = np.arange(len(vis.outlines)) if links is None else np.asarray(links, int)
-    return ~vis.inside_others(points, links)
+    return ~vis.inside_others(points, links, ignore)
 
 
 def against_background(obs: Observation, reach: Sequence[float]) -> np.ndarray:

@@ -102,7 +102,17 @@ def find_tips(ctx: CameraContext, obs: Observation, line_ok: np.ndarray, p_ax: n
     seen = obs.visibility.rows(tl).window_mask(tip[:, None, :])[:, 0]
     # Past the tip boundary there must be background (TipConfig.beyond).
     beyond = tip[:, None, :] + (ts.radius_px[:, None] * np.asarray(tc.beyond, float))[..., None] * ts.v0[:, None, :]
-    seen &= all_last(off_other_links(obs, beyond, tl))
+    clear = all_last(off_other_links(obs, beyond, tl))
+    if tc.over_farther > 0:   # in front of another finger: its own occluding contour, on the measured line
+        vis = obs.visibility
+        behind = (vis.depth[None, :] > vis.depth[tl][:, None]) & ~np.asarray(ctx.chain, bool)[tl]
+        # the share of the link's length its projection shows, from its pixels per mm at its radius
+        length = np.linalg.norm(nan_to_num(obs.end[tl]) - nan_to_num(obs.start[tl]), axis=-1)
+        per_mm = s.radius_px[tl] / np.asarray(ctx.model.link_radius_mm)[tl]   # px per mm at the link
+        full = per_mm * np.asarray(ctx.model.link_length_mm)[tl]
+        shown = np.divide(length, full, out=np.zeros_like(length), where=full > 0)
+        clear |= all_last(off_other_links(obs, beyond, tl, behind)) & line_ok[tl] & (shown >= tc.over_farther)
+    seen &= clear
     valid = (s.ok[tl] & found & (strength >= tc.min_strength) & (strength > 0) & seen
              & (obs.visibility.visible_share[tl] >= config.lines.min_visible) & finite_xy(tip)
              & (line_ok[tl] | (not tc.need_line)))

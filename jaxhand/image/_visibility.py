@@ -108,10 +108,11 @@ class Visibility:
             self.covers[missing] = shapely.buffer(self.cutters[missing], self.margin_px, quad_segs=4)
         return _prepared(self.covers[at])
 
-    def inside_others(self, points: np.ndarray, links: np.ndarray) -> np.ndarray:
+    def inside_others(self, points: np.ndarray, links: np.ndarray, ignore: np.ndarray | None = None) -> np.ndarray:
         """(n, ...) True where ``points[i, ...]`` (NaN: False) lies inside the outline of a link other
-        than ``links[i]``: ``shapely.contains_xy`` against every other outline, decided from the
-        pills' distances and by shapely only within the band where outline and pill differ."""
+        than ``links[i]`` (and, with ``ignore`` (n, links) bool, not one that ``ignore[i]`` marks):
+        ``shapely.contains_xy`` against every other outline, decided from the pills' distances and
+        by shapely only within the band where outline and pill differ."""
         pts = np.asarray(points, float)
         flat = pts.reshape(len(pts), -1, 2)
         x, y = flat[:, None, :, 0], flat[:, None, :, 1]
@@ -120,6 +121,8 @@ class Visibility:
                              lambda a, g, k: shapely.contains_xy(_prepared(self.outlines)[g], flat[a, k, 0],
                                                                  flat[a, k, 1]))
         inside[np.arange(len(flat)), links] = False
+        if ignore is not None:
+            inside &= ~np.asarray(ignore, bool)[..., None]
         return inside.any(1).reshape(pts.shape[:-1])
 
     def window_mask(self, points: np.ndarray) -> np.ndarray:

@@ -12,7 +12,9 @@ __all__ = ["PRESETS"]
 #: tell from it), and after a frame of confidence under 0.2 a start with the finger the image
 #: supports least bent (``hypotheses.finger_level``): a finger that took another's image is
 #: brought back; half the feature slots valid is enough for full confidence (fingers crossing
-#: hide the rest on right frames). More accurate on the dev set than "robust".
+#: hide the rest on right frames); a fingertip in front of other fingers keeps its tip where the
+#: link shows at least half its length (``image.tips.over_farther``: a thumb across the hand).
+#: More accurate on the dev set than "robust".
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -25,7 +27,8 @@ _ROBUST = {"image": {"silhouette_term": {"weight": 0.5}}, "loss": {"hold": False
 PRESETS: dict[str, dict] = {
     "thesis": {},
     "robust": _ROBUST,
-    "robust-limits": {**_ROBUST, "prior": {**_ROBUST["prior"], "soft_limit_weight": 30.0,
+    "robust-limits": {**_ROBUST, "image": {**_ROBUST["image"], "tips": {"over_farther": 0.5}},
+                      "prior": {**_ROBUST["prior"], "soft_limit_weight": 30.0,
                                            "soft_limit_margin_deg": -10.0},
                       "hypotheses": {**_ROBUST["hypotheses"], "finger_level": 0.2},
                       "loss": {**_ROBUST["loss"], "valid_share_good": 0.5}},
