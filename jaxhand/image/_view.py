@@ -77,7 +77,8 @@ class TipFit:
 def find_tips(ctx: CameraContext, obs: Observation, line_ok: np.ndarray, p_ax: np.ndarray, v_ax: np.ndarray
               ) -> TipFit:
     """Step 6: tip samplers on the terminal axial lines (or the predicted axes where no line was
-    measured), the strongest falling edge along each, kept where background lies beyond it."""
+    measured), the strongest falling edge along each, kept where background lies beyond it (or,
+    with ``TipConfig.over_farther``, other fingers farther away)."""
     config = ctx.config
     tc = config.tips
     s = obs.samplers
