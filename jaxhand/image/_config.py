@@ -246,10 +246,11 @@ class TipConfig:
             clear tip).
         over_farther: a tip whose ``beyond`` points lie only on other fingers' links farther from
             the camera than its own (a thumb across the fingers) still counts where its terminal
-            link's line was measured and that link's projection is at least this many of its
-            radii long: its boundary is an occluding contour of its own, and without its tip
-            such a finger may slide along its line (a fingertip pointing at the camera, seen end
-            on, has no such boundary). 0 (the default, the thesis's rule): such tips never count.
+            link's line was measured and that link's projection shows at least this share of its
+            length (in (0, 1]; 0.5: up to 60 deg out of the image plane): its boundary is an
+            occluding contour of its own, and without its tip such a finger may slide along its
+            line (a fingertip pointing at the camera, seen end on, has no such boundary). 0 (the
+            default, the thesis's rule): such tips never count.
     """
 
     points: int = 32
