@@ -105,20 +105,26 @@ def find_tips(ctx: CameraContext, obs: Observation, line_ok: np.ndarray, p_ax: n
     beyond = tip[:, None, :] + (ts.radius_px[:, None] * np.asarray(tc.beyond, float))[..., None] * ts.v0[:, None, :]
     clear = all_last(off_other_links(obs, beyond, tl))
     if tc.over_farther > 0:   # in front of another finger: its own occluding contour, on the measured line
-        vis = obs.visibility
-        behind = (vis.depth[None, :] > vis.depth[tl][:, None]) & ~np.asarray(ctx.chain, bool)[tl]
-        # the share of the link's length its projection shows, from its pixels per mm at its radius
-        length = np.linalg.norm(nan_to_num(obs.end[tl]) - nan_to_num(obs.start[tl]), axis=-1)
-        per_mm = s.radius_px[tl] / np.asarray(ctx.model.link_radius_mm)[tl]   # px per mm at the link
-        full = per_mm * np.asarray(ctx.model.link_length_mm)[tl]
-        shown = np.divide(length, full, out=np.zeros_like(length), where=full > 0)
-        clear |= all_last(off_other_links(obs, beyond, tl, behind)) & line_ok[tl] & (shown >= tc.over_farther)
+        rows = np.flatnonzero(~clear & line_ok[tl] & (_shown_share(ctx, obs, tl) >= tc.over_farther))
+        if len(rows):
+            depth = obs.visibility.depth
+            behind = (depth[None, :] > depth[tl[rows], None]) & ~np.asarray(ctx.chain, bool)[tl[rows]]
+            clear[rows] = all_last(off_other_links(obs, beyond[rows], tl[rows], behind))
     seen &= clear
     valid = (s.ok[tl] & found & (strength >= tc.min_strength) & (strength > 0) & seen
              & (obs.visibility.visible_share[tl] >= config.lines.min_visible) & finite_xy(tip)
              & (line_ok[tl] | (not tc.need_line)))
     return TipFit(tips=np.where(valid[:, None], tip, 0.0), valid=valid, ts=ts,
                   edge=np.where(valid[:, None], edge, np.nan), strength=np.where(valid, strength, 0.0))
+
+
+def _shown_share(ctx: CameraContext, obs: Observation, links: np.ndarray) -> np.ndarray:
+    """(n,) the share of each link's length its projection shows (1: parallel to the image plane,
+    0: seen end on), from its pixels per mm at its radius; 0 where the link has no radius in view."""
+    length = np.linalg.norm(nan_to_num(obs.end[links]) - nan_to_num(obs.start[links]), axis=-1)
+    full = (obs.samplers.radius_px[links] / np.asarray(ctx.model.link_radius_mm)[links]
+            * np.asarray(ctx.model.link_length_mm)[links])
+    return np.divide(length, full, out=np.zeros_like(length), where=full > 0)
 
 
 @dataclasses.dataclass(frozen=True)
