@@ -56,12 +56,6 @@ SETTINGS = {
     "robust-limits-nofinger": {**PRESETS["robust-limits"],
                                "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "finger_level": 0.0},
                                "loss": {**PRESETS["robust-limits"]["loss"], "valid_share_good": 1.0}},
-    # ... with two boundary lines over 4 deg from parallel replaced by the one nearer the prediction
-    "robust-limits+splay4": {**PRESETS["robust-limits"],
-                             "image": {**PRESETS["robust-limits"]["image"], "lines": {"max_splay_deg": 4.0}}},
-    # ... with WSSD matching each profile's brightness to its template's (gain up to 2)
-    "robust-limits+gain2": {**PRESETS["robust-limits"],
-                            "image": {**PRESETS["robust-limits"]["image"], "search": {"wssd_gain": 2.0}}},
     # ... with the foreground learned from the sequence (its median, seeded at the first pose)
     "robust+sequence": {**PRESETS["robust"], "image": {**PRESETS["robust"]["image"],
                                                        "score": {"foreground": "sequence"}}},

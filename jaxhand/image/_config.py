@@ -124,7 +124,6 @@ class SearchConfig:
     min_window: float = 0.15
     max_mismatch: float = 0.5
     snap: float = 0.2
-    wssd_gain: float = 1.0
 
     def __post_init__(self):
         w = "SearchConfig"
@@ -142,7 +141,6 @@ class SearchConfig:
         _check(0 < self.min_window <= 1, f"{w}.min_window", f"must lie in (0, 1], got {self.min_window!r}")
         _check(self.max_mismatch > 0, f"{w}.max_mismatch", f"must be > 0, got {self.max_mismatch!r}")
         _check(self.snap >= 0, f"{w}.snap", f"must be >= 0, got {self.snap!r}")
-        _check(1 <= self.wssd_gain < float("inf"), f"{w}.wssd_gain", f"must be a finite number >= 1, got {self.wssd_gain!r}")
 
     @property
     def sign(self) -> float:
@@ -207,9 +205,6 @@ class LineConfig:
         weight_by_visibility: multiply a link's weight by the visible share of its polygon.
         min_visible: a link whose visible share (occlusion and image border) is below this is
             invalid.
-        max_splay_deg: two boundary lines more than this many degrees from parallel are not one
-            link's sides (one is a neighbour's or the palm's edge): the axial line comes from the
-            one nearer the predicted direction alone, as with ``single_edge``; 0: off (the thesis).
     """
 
     tau_px: float = 1.0
@@ -219,7 +214,6 @@ class LineConfig:
     single_edge_weight: float = 0.5
     weight_by_visibility: bool = True
     min_visible: float = 0.1
-    max_splay_deg: float = 0.0
 
     def __post_init__(self):
         w = "LineConfig"
@@ -230,7 +224,6 @@ class LineConfig:
         _check(0 <= self.single_edge_weight <= 1, f"{w}.single_edge_weight",
                f"must lie in [0, 1], got {self.single_edge_weight!r}")
         _check(0 <= self.min_visible <= 1, f"{w}.min_visible", f"must lie in [0, 1], got {self.min_visible!r}")
-        _check(0 <= self.max_splay_deg < 90, f"{w}.max_splay_deg", f"must lie in [0, 90), got {self.max_splay_deg!r}")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,6 +1,5 @@
 """Step 5's numbers (:func:`._view.fit_links`) as one compiled function: RANSAC + PCA of both boundaries,
-the axial line, the single-boundary fallback (also for two boundaries too far from parallel) and each
-link's validity, the same steps as
+the axial line, the single-boundary fallback and each link's validity, the same steps as
 :mod:`._lines` (thesis §4.4, DigitEyes §4) in one call instead of many small NumPy ones.
 
 Every result comes back packed in one float array, converted to NumPy once. Rows are padded to a
@@ -26,21 +25,19 @@ def padded_rows(n: int) -> int:
 
 
 @functools.partial(jax.jit, static_argnames=("tau_px", "min_inliers", "det_eps", "single_edge", "min_visible",
-                                             "weight_by_visibility", "single_edge_weight", "max_splay_deg"))
+                                             "weight_by_visibility", "single_edge_weight"))
 def _fit(edge_px, edge_ok, rows, *, tau_px, min_inliers, det_eps, single_edge, min_visible, weight_by_visibility,
-         single_edge_weight, max_splay_deg):
+         single_edge_weight):
     """(links, 19 + 2 samplers) packed :class:`._view.LineFit` fields of one padded batch; ``rows`` holds
     the axis midpoint (2), radius, direction (2), sampler validity and visible share of each link."""
     pts = jnp.swapaxes(jnp.where(edge_ok[..., None], edge_px, 0.0), 1, 2)  # (links, 2, samplers, 2)
     p, v, ok, inliers = ransac_pca_jnp(pts, jnp.swapaxes(edge_ok, 1, 2), tau_px, min_inliers)
     mid, radius, direction, s_ok, share = rows[:, 0:2], rows[:, 2], rows[:, 3:5], rows[:, 5] > 0, rows[:, 6]
-    split = _splayed(v, ok, max_splay_deg)
-    both = ok[:, 0] & ok[:, 1] & ~split
+    both = ok[:, 0] & ok[:, 1]
     p_ax, v_ax = axial_line_jnp(p[:, 0], v[:, 0], p[:, 1], v[:, 1], det_eps)
-    first = jnp.where(split, jnp.abs(dot_jnp(v[:, 0], direction)) >= jnp.abs(dot_jnp(v[:, 1], direction)), ok[:, 0])
-    single = ((ok[:, 0] ^ ok[:, 1]) | split) & single_edge
-    p_one = jnp.where(first[:, None], p[:, 0], p[:, 1])
-    v_one = jnp.where(first[:, None], v[:, 0], v[:, 1])
+    single = (ok[:, 0] ^ ok[:, 1]) & single_edge
+    p_one = jnp.where(ok[:, :1], p[:, 0], p[:, 1])
+    v_one = jnp.where(ok[:, :1], v[:, 0], v[:, 1])
     p_one = offset_towards_jnp(p_one, v_one, mid, radius)  # towards the predicted axis
     p_ax = jnp.where(single[:, None], p_one, p_ax)
     v_ax = jnp.where(single[:, None], v_one, v_ax)
@@ -53,15 +50,6 @@ def _fit(edge_px, edge_ok, rows, *, tau_px, min_inliers, det_eps, single_edge, m
     parts = [lines, valid[:, None], jnp.where(valid, weight, 0.0)[:, None], line_params_jnp(p, v).reshape(L, 6), ok,
              inliers.reshape(L, -1), (single & valid)[:, None], p_ax, v_ax]
     return jnp.concatenate([a.astype(float) for a in parts], -1)
-
-
-def _splayed(v, ok, max_splay_deg):
-    """(links,) both boundary lines found, but more than ``max_splay_deg`` apart (0: never): one of
-    them is not the link's (a neighbour's edge, the palm's); the one nearer the predicted direction
-    is kept alone."""
-    if max_splay_deg <= 0:
-        return jnp.zeros(ok.shape[:1], bool)
-    return ok[:, 0] & ok[:, 1] & (jnp.abs(dot_jnp(v[:, 0], v[:, 1])) < np.cos(np.radians(max_splay_deg)))
 
 
 def fit_rows(edge_px: np.ndarray, edge_ok: np.ndarray, mid: np.ndarray, radius_px: np.ndarray,
@@ -80,8 +68,7 @@ def fit_rows(edge_px: np.ndarray, edge_ok: np.ndarray, mid: np.ndarray, radius_p
     out = np.asarray(_fit(px, ok, rows, tau_px=float(lc.tau_px), min_inliers=int(lc.min_inliers),
                           det_eps=float(lc.det_eps), single_edge=bool(lc.single_edge),
                           min_visible=float(lc.min_visible), weight_by_visibility=bool(lc.weight_by_visibility),
-                          single_edge_weight=float(lc.single_edge_weight),
-                          max_splay_deg=float(lc.max_splay_deg)))[:L]
+                          single_edge_weight=float(lc.single_edge_weight)))[:L]
     k = 13 + 2 * S
     return dict(lines=out[:, 0:3], valid=out[:, 3] > 0, weight=out[:, 4], boundary=out[:, 5:11].reshape(L, 2, 3),
                 bvalid=out[:, 11:13] > 0, inliers=out[:, 13:k].reshape(L, 2, S) > 0, single=out[:, k] > 0,

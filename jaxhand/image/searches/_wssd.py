@@ -46,20 +46,17 @@ from ._common import (
 __all__ = ["wssd_valley", "wssd_surface"]
 
 
-def wssd_surface(values: np.ndarray, usable: np.ndarray, templates: np.ndarray, window: np.ndarray, max_shift: int,
-                 gain: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def wssd_surface(values: np.ndarray, usable: np.ndarray, templates: np.ndarray, window: np.ndarray, max_shift: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Mean windowed squared difference of every profile against its template at every shift.
 
-    ``WSSD(s) = mean over j with v(j) and I(j + s) usable of (I(j + s) - t(j))^2``; with ``gain``
-    > 1, of ``(g I(j + s) + o - t(j))^2`` with the offset ``o`` and the gain ``g`` in
-    ``[1 / gain, gain]`` that fit best at that shift (:func:`_photometric_ssd`).
+    ``WSSD(s) = mean over j with v(j) and I(j + s) usable of (I(j + s) - t(j))^2``.
 
     Args:
         values, usable: (..., n) current profiles and their usable samples.
         templates: (..., n) stored templates.
         window: (..., n) visibility window (applied to the template).
         max_shift: S; shifts run over -S..S.
-        gain: the largest brightness gain allowed between template and profile (1: none).
 
     Returns:
         (W, counts, shifts): W (..., 2 S + 1) (inf where no term counts), the number of terms of
@@ -76,27 +73,8 @@ def wssd_surface(values: np.ndarray, usable: np.ndarray, templates: np.ndarray, 
     diff = np.subtract(img, np.where(window, templates, 0.0)[..., None, :])
     np.multiply(diff, ok, out=diff)  # in place: the surface is the largest array of a frame
     counts = _count_last(ok)
-    if gain > 1:
-        W = np.where(counts > 0, _photometric_ssd(img, np.where(window, templates, 0.0), ok, counts, gain), np.inf)
-    else:
-        W = np.where(counts > 0, np.square(diff, out=diff).sum(-1) / np.maximum(counts, 1), np.inf)
+    W = np.where(counts > 0, np.square(diff, out=diff).sum(-1) / np.maximum(counts, 1), np.inf)
     return W, counts, np.arange(-S, S + 1)
-
-
-def _photometric_ssd(img: np.ndarray, templates: np.ndarray, ok: np.ndarray, counts: np.ndarray, gain: float
-                     ) -> np.ndarray:
-    """The mean of ``(g I + o - t)^2`` over the counted terms ``ok`` (..., shifts, n), least squares
-    in the offset ``o`` and the gain ``g`` clipped to ``[1 / gain, gain]``: a phalanx that turns
-    from the light keeps its profile's shape but not its brightness."""
-    n = np.maximum(counts, 1)
-    i = np.where(ok, img, 0.0)
-    t = np.where(ok, templates[..., None, :], 0.0)
-    mi, mt = i.sum(-1) / n, t.sum(-1) / n
-    var_i = np.maximum((i * i).sum(-1) / n - mi * mi, 0.0)
-    var_t = np.maximum((t * t).sum(-1) / n - mt * mt, 0.0)
-    cov = (i * t).sum(-1) / n - mi * mt
-    g = np.clip(cov / np.maximum(var_i, 1e-12), 1.0 / gain, gain)
-    return np.maximum(g * g * var_i - 2.0 * g * cov + var_t, 0.0)
 
 
 def _count_last(b: np.ndarray) -> np.ndarray:
@@ -241,7 +219,7 @@ def wssd_valley(profiles: Profiles, config: SearchConfig) -> Edges:
     if profiles.template_mask is not None:
         window = window & profiles.template_mask
     S = profiles.max_shift(config.max_shift)
-    W, counts, shifts = wssd_surface(profiles.values, profiles.usable, templates, window, S, config.wssd_gain)
+    W, counts, shifts = wssd_surface(profiles.values, profiles.usable, templates, window, S)
     enough = window.sum(-1) >= config.min_window * N
     # Contrast of the windowed template: a flat one holds no boundary to match.
     wn = np.maximum(window.sum(-1), 1)
