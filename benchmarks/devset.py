@@ -50,7 +50,8 @@ SETTINGS = {
     # TrackConfig.preset("robust")
     "robust": PRESETS["robust"],
     # ... with soft limits from 10 deg inside each joint limit, the weakest finger bent after a
-    # frame of confidence under 0.2 and loss.valid_share_good 0.5 (TrackConfig.preset("robust-limits"))
+    # frame of confidence under 0.2, loss.valid_share_good 0.5, tips in front of other fingers
+    # and each finger's support judged by its tip's link (TrackConfig.preset("robust-limits"))
     "robust-limits": PRESETS["robust-limits"],
     # ... as it was before 2026-12-03's second session (no finger starts, the share itself in the confidence)
     "robust-limits-nofinger": {**PRESETS["robust-limits"],

@@ -137,10 +137,13 @@ def test_presets_apply_named_changes_and_unknown_names_are_listed():
     assert limits.hypotheses.finger_level == 0.2 and robust.hypotheses.finger_level == 0.0
     assert limits.loss.valid_share_good == 0.5 and robust.loss.valid_share_good == 1.0
     assert limits.image.tips.over_farther == 0.5 and robust.image.tips.over_farther == 0.0
+    assert limits.support.tip_links and (limits.support.lost, limits.support.good) == (0.67, 0.83)
+    assert not robust.support.tip_links and (robust.support.lost, robust.support.good) == (0.80, 0.96)
     assert limits.image.silhouette_term == robust.image.silhouette_term
     assert limits.merged({"prior": {"soft_limit_weight": 0.0, "soft_limit_margin_deg": 0.0},
                           "hypotheses": {"finger_level": 0.0}, "loss": {"valid_share_good": 1.0},
-                          "image": {"tips": {"over_farther": 0.0}}}) == robust
+                          "image": {"tips": {"over_farther": 0.0}},
+                          "support": {"tip_links": False, "lost": 0.80, "good": 0.96}}) == robust
     assert config_from_dict(config_to_dict(limits)) == limits
     assert config_from_dict(config_to_dict(robust)) == robust
     with pytest.raises(jh.InputError,

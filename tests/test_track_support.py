@@ -28,6 +28,7 @@ from jaxhand.track._support import (
     judge_weights,
     largest_unexplained_px,
     support_confidence,
+    tip_link_scores,
     unexplained_confidence,
     weakest_finger,
 )
@@ -45,7 +46,7 @@ def test_support_config_checks_its_levels():
         SupportConfig(lost=0.9, good=0.9)
     with pytest.raises(InputError, match="support.unexplained_px"):
         SupportConfig(unexplained_px=-1.0)
-    for key, value in (("enabled", 1), ("margin_px", -1)):
+    for key, value in (("enabled", 1), ("margin_px", -1), ("tip_links", "yes")):
         with pytest.raises(InputError, match=f"support.{key}"):
             config_from_dict({"support": {key: value}})
     assert not TrackConfig().support.enabled
@@ -69,6 +70,16 @@ def test_weakest_finger_averages_cameras_and_leaves_hidden_links_out():
     assert weakest_finger(scores, finger) == pytest.approx(0.7)
     assert weakest_finger(scores[:1], finger) == pytest.approx(0.6)
     assert np.isnan(weakest_finger(np.full((1, 4), np.nan), finger))
+
+
+def test_tip_link_scores_judge_each_finger_by_its_tip_link():
+    finger = np.array([0, 0, 1, 1])
+    scores = np.array([[0.5, 0.9, 0.95, 0.7], [np.nan, 0.8, 0.6, np.nan]])
+    kept = tip_link_scores(scores, (1, 3))
+    np.testing.assert_array_equal(np.isnan(kept), [[True, False, True, False], [True, False, True, True]])
+    assert weakest_finger(kept, finger) == pytest.approx(0.7)      # finger 1's tip link, one camera
+    assert weakest_finger(scores, finger) == pytest.approx(0.675)  # all links: finger 0's (0.5 + 0.85) / 2
+    assert weakest_finger(tip_link_scores(scores[:, :2], (1,)), finger[:2]) == pytest.approx(0.85)
 
 
 def test_support_confidence_is_a_clipped_ramp():
@@ -158,6 +169,23 @@ def test_the_tracker_takes_the_lower_confidence(support, unexplained, enabled, l
     assert (judged.confidence < 0.5) == low
     assert not judged.lost
     np.testing.assert_array_equal(judged.q_filtered, plain.q_filtered)
+
+
+@pytest.mark.parametrize("weak_link, tip_links, low", [(0, False, True), (0, True, False), ("tip", True, True)])
+def test_tip_links_leave_a_stray_proximal_phalanx_out(weak_link, tip_links, low):
+    """With ``support.tip_links`` a weak link that carries no tip does not lower the confidence;
+    a weak fingertip link still does."""
+    seq = make_preset("two_finger_occlusion", frames=3, size=(160, 120))
+    m = seq.model
+    link = m.tip_links[0] if weak_link == "tip" else weak_link
+    assert (link in m.tip_links) == (weak_link == "tip")
+    scores = np.full((1, m.n_links), 0.99)
+    scores[0, link] = 0.5
+    exact = ExactFrontEnd(m, seq.cameras, seq.q, noise_px=0.0)
+    config = TrackConfig(support=SupportConfig(enabled=True, tip_links=tip_links))
+    tracker = Tracker(m, seq.cameras, _Supported(exact, ImageSupport(link_score=scores)), config)
+    _, rep = tracker.step(tracker.init(seq.q[0]), [None] * len(seq.cameras), 0)
+    assert (rep.confidence < 0.5) == low
 
 
 def test_judge_weights_are_the_weakest_finger_to_a_power():

@@ -13,7 +13,9 @@ __all__ = ["PRESETS"]
 #: supports least bent (``hypotheses.finger_level``): a finger that took another's image is
 #: brought back; half the feature slots valid is enough for full confidence (fingers crossing
 #: hide the rest on right frames); a fingertip in front of other fingers keeps its tip where the
-#: link shows at least half its length (``image.tips.over_farther``: a thumb across the hand).
+#: link shows at least half its length (``image.tips.over_farther``: a thumb across the hand);
+#: the confidence judges each finger by its fingertip's link (``support.tip_links``, on a ramp
+#: from 0.67 to 0.83), so a proximal phalanx off its edges with the tip in place is not a loss.
 #: More accurate on the dev set than "robust".
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
@@ -31,6 +33,7 @@ PRESETS: dict[str, dict] = {
                       "prior": {**_ROBUST["prior"], "soft_limit_weight": 30.0,
                                            "soft_limit_margin_deg": -10.0},
                       "hypotheses": {**_ROBUST["hypotheses"], "finger_level": 0.2},
-                      "loss": {**_ROBUST["loss"], "valid_share_good": 0.5}},
+                      "loss": {**_ROBUST["loss"], "valid_share_good": 0.5},
+                      "support": {**_ROBUST["support"], "tip_links": True, "lost": 0.67, "good": 0.83}},
     "coupled": {"prior": {"dip_pip_weight": 4.0}},
 }

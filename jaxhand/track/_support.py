@@ -5,7 +5,8 @@ A link's support is its :func:`jaxhand.score.score_silhouette` link score at the
 (the mean of its visible pixels' foreground share and its own contour's closeness to the image's
 edges). A *finger* is a chain of links under one child of the base frame; its support is the
 mean over its judged links (a hidden link gives no evidence either way), and the frame's is the
-weakest finger's. :func:`support_confidence` maps it onto [0, 1] with a ramp.
+weakest finger's. With ``tip_links`` only the links that carry a fingertip are judged
+(:func:`tip_link_scores`). :func:`support_confidence` maps it onto [0, 1] with a ramp.
 
 The converse evidence: foreground the estimate leaves unexplained (:func:`largest_unexplained_px`,
 the largest blob of foreground outside the grown silhouette), e.g. the tip of a finger the model
@@ -25,7 +26,7 @@ from .._errors import InputError
 from ..model import Model
 
 __all__ = ["SupportConfig", "ImageSupport", "finger_of_frame", "finger_of_link", "finger_supports", "weakest_finger",
-           "judge_weights", "support_confidence", "largest_unexplained_px", "unexplained_confidence"]
+           "tip_link_scores", "judge_weights", "support_confidence", "largest_unexplained_px", "unexplained_confidence"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,6 +46,9 @@ class SupportConfig:
             finger's support to this power, so that of two starts the silhouette cannot tell
             apart (a finger lying on another's image) the one whose fingers the image backs
             wins; 0: off. Works whether or not ``enabled`` is.
+        tip_links: host. Judge each finger by the link that carries its tip alone (its distal
+            phalanx): where a fingertip is is what the tracker reports, and a finger whose tip
+            lies on its image while a proximal phalanx strays off its edges has its tip right.
     """
 
     enabled: bool = False
@@ -53,10 +57,12 @@ class SupportConfig:
     unexplained_px: float = 8.0
     margin_px: int = 1
     judge_power: float = 0.0
+    tip_links: bool = False
 
     def __post_init__(self):
-        if not isinstance(self.enabled, bool):
-            raise InputError(f"support.enabled: expected true or false, got {self.enabled!r}")
+        for name in ("enabled", "tip_links"):
+            if not isinstance(getattr(self, name), bool):
+                raise InputError(f"support.{name}: expected true or false, got {getattr(self, name)!r}")
         for name in ("lost", "good"):
             if not _finite(getattr(self, name)):
                 raise InputError(f"support.{name}: expected a finite number, got {getattr(self, name)!r}")
@@ -119,6 +125,16 @@ def weakest_finger(link_scores, finger: np.ndarray) -> float:
     """The lowest finger support (:func:`finger_supports`); NaN when no finger has a judged link."""
     supports = finger_supports(link_scores, finger)
     return min(supports.values()) if supports else float("nan")
+
+
+def tip_link_scores(link_scores, tip_links) -> np.ndarray:
+    """The (..., links) link scores with every link that carries no tip (not in ``tip_links``)
+    set to NaN (not judged)."""
+    s = np.array(link_scores, float)
+    keep = np.zeros(s.shape[-1], bool)
+    keep[np.asarray(tip_links, int)] = True
+    s[..., ~keep] = np.nan
+    return s
 
 
 def judge_weights(link_scores: list, finger: np.ndarray, power: float) -> np.ndarray:

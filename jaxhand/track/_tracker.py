@@ -47,7 +47,9 @@ from ._support import (
     finger_supports,
     judge_weights,
     support_confidence,
+    tip_link_scores,
     unexplained_confidence,
+    weakest_finger,
 )
 
 __all__ = ["TrackState", "StepReport", "Tracker"]
@@ -247,15 +249,17 @@ class Tracker:
         return full
 
     def _support(self, images, q, fe_state) -> tuple[float, dict[int, float]]:
-        """The image's support of ``q`` as a confidence, the lower of the weakest finger's and the
-        unexplained foreground's (:mod:`jaxhand.track._support`; 1 when the front end measures
-        none), and each finger's support."""
+        """The image's support of ``q`` as a confidence, the lower of the weakest finger's (by its
+        tip's link alone with ``support.tip_links``) and the unexplained foreground's
+        (:mod:`jaxhand.track._support`; 1 when the front end measures none), and each finger's
+        support (all its links)."""
         config = self.config.support
         measured = self.frontend.support(images, q, fe_state, config.margin_px)
         if measured is None:
             return 1.0, {}
         fingers = finger_supports(measured.link_score, self._finger)
-        weakest = min(fingers.values()) if fingers else float("nan")
+        judged = tip_link_scores(measured.link_score, self.model.tip_links) if config.tip_links else measured.link_score
+        weakest = weakest_finger(judged, self._finger)
         confidence = min(support_confidence(weakest, config), unexplained_confidence(measured.unexplained_px, config))
         return confidence, fingers
 
