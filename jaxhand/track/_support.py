@@ -47,8 +47,8 @@ class SupportConfig:
             apart (a finger lying on another's image) the one whose fingers the image backs
             wins; 0: off. Works whether or not ``enabled`` is.
         tip_links: host. Judge each finger by the link that carries its tip alone (its distal
-            phalanx): where a fingertip is is what the tracker reports, and a finger whose tip
-            lies on its image while a proximal phalanx strays off its edges has its tip right.
+            phalanx): a finger whose tip lies on its image while a proximal phalanx strays off
+            its edges still has its tip right, and the tips are what the loss flag is about.
     """
 
     enabled: bool = False
