@@ -49,7 +49,6 @@ from ._support import (
     support_confidence,
     tip_link_scores,
     unexplained_confidence,
-    weakest_finger,
 )
 
 __all__ = ["TrackState", "StepReport", "Tracker"]
@@ -258,8 +257,9 @@ class Tracker:
         if measured is None:
             return 1.0, {}
         fingers = finger_supports(measured.link_score, self._finger)
-        judged = tip_link_scores(measured.link_score, self.model.tip_links) if config.tip_links else measured.link_score
-        weakest = weakest_finger(judged, self._finger)
+        judged = (finger_supports(tip_link_scores(measured.link_score, self.model.tip_links), self._finger)
+                  if config.tip_links else fingers)
+        weakest = min(judged.values(), default=float("nan"))
         confidence = min(support_confidence(weakest, config), unexplained_confidence(measured.unexplained_px, config))
         return confidence, fingers
 
