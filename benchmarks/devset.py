@@ -14,11 +14,13 @@ Prints a table and writes
     .venv/bin/python benchmarks/devset.py                                   # default sequences, all settings
     .venv/bin/python benchmarks/devset.py --only open_close --settings default,temporal
     .venv/bin/python benchmarks/devset.py --frames 30 --no-json             # quick look
+    .venv/bin/python benchmarks/devset.py --settings robust-limits --extra '{"support": {"judge_power": 2}}'
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -162,6 +164,9 @@ def main(argv=None) -> None:
     p.add_argument("--no-exact", action="store_true", help="skip the exact-feature reference")
     p.add_argument("--no-json", action="store_true")
     p.add_argument("--json", default="devset.json", help="file name under benchmarks/results/")
+    p.add_argument("--extra", type=json.loads, default={},
+                   help="a JSON mapping merged over every setting, for a trial change "
+                        "(e.g. '{\"support\": {\"judge_power\": 2}}')")
     add_runtime_option(p)
     args = p.parse_args(argv)
     apply_runtime(args)
@@ -169,7 +174,7 @@ def main(argv=None) -> None:
     for name in args.only.split(","):
         seq = load_devset(REPO / "data" / "mujoco" / name)
         for setting in args.settings.split(","):
-            config = TrackConfig().merged(SETTINGS[setting])
+            config = TrackConfig().merged(SETTINGS[setting]).merged(args.extra)
             for exact in ((False,) if args.no_exact else (False, True)):
                 r = track(seq, config, exact, args.frames)
                 rec = {"sequence": name, "setting": setting, "features": "exact" if exact else "image", **r,
