@@ -7,19 +7,22 @@ joints (those whose truth moves), of the reported estimate (``q_filtered``) and 
 (``q_solved``) and their mean tip error (px), frames flagged lost, frames/s of the tracker step,
 the longest stretch of frames in which one moving joint stays more than 15 deg off, and the loss
 flag's quality (the share of frames with a mean tip error over 8 px that are flagged lost or
-below 0.5 confidence, and of those under 3 px).
-Prints a table and writes
-``benchmarks/results/devset.json``.
+below 0.5 confidence, and of those under 3 px). With ``--start-deg`` and ``--seeds`` each run
+starts off the true pose by seeded noise, and a second table gives the median and range over
+seeds: two settings whose ranges overlap have not been told apart. Prints a table and writes
+``benchmarks/results/devset.json`` (after each run, so an interrupted run keeps what it measured).
 
     .venv/bin/python benchmarks/devset.py                                   # default sequences, all settings
     .venv/bin/python benchmarks/devset.py --only open_close --settings default,temporal
     .venv/bin/python benchmarks/devset.py --frames 30 --no-json             # quick look
     .venv/bin/python benchmarks/devset.py --settings robust-limits --extra '{"support": {"judge_power": 2}}'
+    .venv/bin/python benchmarks/devset.py --settings robust-limits --start-deg 2 --seeds 3   # the spread from chance
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import sys
 import time
@@ -103,7 +106,22 @@ SETTINGS = {
 }
 
 
-def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: float = 0.5):
+def moving_joints(seq) -> np.ndarray:
+    """The joint angles whose truth moves in the sequence."""
+    return (np.ptp(np.asarray(seq.truth.q), axis=0) > 1e-6) & np.asarray(seq.model.is_angle)
+
+
+def start_pose(seq, start_deg: float, seed: int) -> np.ndarray:
+    """The true first pose, its moving joint angles moved by Gaussian noise of ``start_deg``
+    (seeded; 0: the truth itself) and clipped into the limits."""
+    q0 = np.asarray(seq.truth.q[0], float).copy()
+    if start_deg > 0:
+        moving = moving_joints(seq)
+        q0[moving] += np.radians(start_deg) * np.random.default_rng(seed).standard_normal(int(moving.sum()))
+    return np.clip(q0, np.asarray(seq.model.q_lower), np.asarray(seq.model.q_upper))
+
+
+def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: float = 0.5, q0=None):
     m, cams = seq.model, seq.truth.cameras
     n = len(seq.truth.q) if frames is None else min(frames, len(seq.truth.q))
     if exact:
@@ -113,7 +131,7 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         images = open_frames(folders, fps=seq.truth.fps)
         frontend = image_front_end(m, cams, config.image, images, n)
     tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
-    state = tracker.init(seq.truth.q[0])
+    state = tracker.init(seq.truth.q[0] if q0 is None else q0)
     filt, raw, lost, times, conf, lost_flags = [], [], 0, [], [], []
     blank = [np.zeros(c.size[::-1], np.uint8) for c in cams] if exact else None
     it = zip(*images) if images is not None else iter(lambda: None, 0)
@@ -129,7 +147,7 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         conf.append(rep.confidence)
         lost_flags.append(rep.lost)
     qt = np.asarray(seq.truth.q[:n])
-    moving = (np.ptp(np.asarray(seq.truth.q), axis=0) > 1e-6) & np.asarray(m.is_angle)
+    moving = moving_joints(seq)
     out = {"frames": n, "lost": lost, "fps": 1.0 / float(np.median(times[1:])) if n > 1 else float("nan")}
     for label, q in (("filtered", filt), ("raw", raw)):
         e = np.degrees(np.abs(np.asarray(q) - qt))[:, moving]
@@ -167,29 +185,47 @@ def main(argv=None) -> None:
     p.add_argument("--extra", type=json.loads, default={},
                    help="a JSON mapping merged over every setting, for a trial change "
                         "(e.g. '{\"support\": {\"judge_power\": 2}}')")
+    p.add_argument("--start-deg", type=float, default=0.0,
+                   help="start each run this far (Gaussian sigma, deg) off the true first pose in its moving joints")
+    p.add_argument("--seeds", type=int, default=1,
+                   help="runs per sequence and setting, each from its own seeded start (needs --start-deg); the "
+                        "spread of their errors says how much of a difference between settings is chance")
     add_runtime_option(p)
     args = p.parse_args(argv)
+    if args.seeds < 1 or (args.seeds > 1 and not args.start_deg > 0):
+        p.error(f"--seeds {args.seeds}: need 1, or more than 1 with --start-deg > 0 (else the runs are the same)")
     apply_runtime(args)
     rows, records = [], []
     for name in args.only.split(","):
         seq = load_devset(REPO / "data" / "mujoco" / name)
         for setting in args.settings.split(","):
             config = TrackConfig().merged(SETTINGS[setting]).merged(args.extra)
-            for exact in ((False,) if args.no_exact else (False, True)):
-                r = track(seq, config, exact, args.frames)
-                rec = {"sequence": name, "setting": setting, "features": "exact" if exact else "image", **r,
-                       "config": config_to_dict(config)}
+            for exact, seed in itertools.product((False,) if args.no_exact else (False, True), range(args.seeds)):
+                r = track(seq, config, exact, args.frames, q0=start_pose(seq, args.start_deg, seed))
+                rec = {"sequence": name, "setting": setting, "features": "exact" if exact else "image",
+                       "start_deg": args.start_deg, "seed": seed, **r, "config": config_to_dict(config)}
                 records.append(rec)
-                rows.append([name, setting, rec["features"], f"{r['filtered_mean_deg']:.2f}",
+                if not args.no_json:   # as it goes: an interrupted run keeps what it measured
+                    write_json({"environment": environment(), "runs": records}, RESULTS / args.json)
+                rows.append([name, setting, rec["features"], str(seed), f"{r['filtered_mean_deg']:.2f}",
                              f"{r['filtered_max_deg']:.1f}", f"{r['raw_mean_deg']:.2f}", f"{r['raw_max_deg']:.1f}",
                              str(r["lost"]), f"{r['fps']:.1f}", str(r["longest_run_over_15deg"]),
                              _share(r["loss_flag"]["flagged_bad"]),
                              _share(r["loss_flag"]["flagged_good"])])
                 print(" | ".join(rows[-1]), flush=True)
-    print(format_table(rows, ["sequence", "setting", "features", "mean", "max", "raw mean", "raw max", "lost", "fps",
-                              "frames >15° in a row", "flagged >8px", "flagged <3px"]))
-    if not args.no_json:
-        write_json({"environment": environment(), "runs": records}, RESULTS / args.json)
+    print(format_table(rows, ["sequence", "setting", "features", "seed", "mean", "max", "raw mean", "raw max", "lost",
+                              "fps", "frames >15° in a row", "flagged >8px", "flagged <3px"]))
+    if args.seeds > 1:
+        print(format_table(spread_rows(records), ["sequence", "setting", "features", "runs", "median of means",
+                                                  "min", "max"]))
+
+
+def spread_rows(records) -> list[list[str]]:
+    """Per sequence, setting and features: the median, min and max over seeds of the mean error."""
+    groups: dict[tuple, list[float]] = {}
+    for r in records:
+        groups.setdefault((r["sequence"], r["setting"], r["features"]), []).append(r["filtered_mean_deg"])
+    return [[*key, str(len(v)), f"{np.median(v):.2f}", f"{min(v):.2f}", f"{max(v):.2f}"] for key, v in groups.items()]
 
 
 if __name__ == "__main__":
