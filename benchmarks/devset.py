@@ -58,6 +58,12 @@ SETTINGS = {
     # frame of confidence under 0.2, loss.valid_share_good 0.5, tips in front of other fingers
     # and each finger's support judged by its tip's link (TrackConfig.preset("robust-limits"))
     "robust-limits": PRESETS["robust-limits"],
+    # ... with an information-weighted temporal prior (15 deg, ratio 1) that also judges the starts
+    # (prior.temporal_merit 0.1; 2026-12-04)
+    "robust-limits+temporal": {**PRESETS["robust-limits"],
+                               "prior": {**PRESETS["robust-limits"]["prior"], "temporal_sigma_deg": 15.0,
+                                         "temporal_sigma_mm": 10.0, "information_ratio": 1.0,
+                                         "temporal_merit": 0.1}},
     # ... as it was before 2026-12-03's second session (no finger starts, the share itself in the confidence)
     "robust-limits-nofinger": {**PRESETS["robust-limits"],
                                "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "finger_level": 0.0},

@@ -101,6 +101,8 @@ def test_missing_keys_keep_their_defaults_and_merged_applies_changes():
     ({"prior": {"dip_pip_weight": float("inf")}}, r"prior\.dip_pip_weight: expected a finite number >= 0"),
     ({"prior": {"soft_limit_margin_deg": float("nan")}}, r"prior\.soft_limit_margin_deg: expected a finite number"),
     ({"prior": {"information_ratio": 1.0}}, r"prior\.information_ratio: weighs the temporal prior"),
+    ({"prior": {"temporal_merit": 0.1}}, r"prior\.temporal_merit: counts the temporal prior: set temporal_sigma_deg"),
+    ({"prior": {"temporal_merit": -0.1}}, r"prior\.temporal_merit: expected a finite number >= 0"),
     ({"prior": {"temporal_sigma_dg": 5.0}},
      r"prior\.temporal_sigma_dg: unknown key; did you mean 'temporal_sigma_deg'"),
     ({"filter": {"report_solve": 1}}, r"filter\.report_solve: expected true or false"),

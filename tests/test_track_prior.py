@@ -6,7 +6,8 @@
 - the frame's RMS counts the image residuals only;
 - no recompilation across frames or for new prior numbers;
 - on exact features the information-weighted prior's reported estimate is no worse than the raw
-  solve without priors.
+  solve without priors;
+- ``prior.temporal_merit``: a start's merit counts its temporal residuals beside the features'.
 """
 
 import jax
@@ -21,6 +22,8 @@ from jaxhand.priors import TemporalPrior, information_weight, temporal_weight
 from jaxhand.render import make_preset
 from jaxhand.solve.internal import fit_traced, solver_program
 from jaxhand.track import ExactFrontEnd, FilterConfig, PriorConfig, RobustConfig, TrackConfig, Tracker
+from jaxhand.track._compiled import _Priors
+from jaxhand.track._hypotheses import image_merit
 
 
 @pytest.fixture(scope="module")
@@ -68,6 +71,24 @@ def test_information_weight_is_full_where_unseen_and_fades_where_seen():
     S = np.diag([0.5, 1 / 3, 0.0])
     L = S @ np.asarray(lam) @ S
     np.testing.assert_allclose(W.T @ W, D @ (0.5 * np.linalg.inv(0.5 * np.eye(3) + L)) @ D, atol=1e-12)
+
+
+def test_temporal_merit_counts_the_prior_residuals_beside_the_features(problem):
+    seq, feats = problem
+    m, q = seq.model, jnp.asarray(seq.q[3])
+    exact = tuple(features_from_pose(m, seq.cameras, q))
+    weight = sum(float(jnp.sum(jnp.where(f.line_valid, f.line_weight, 0.0)) + jnp.sum(jnp.where(f.tip_valid,
+                 f.tip_weight, 0.0))) for f in exact)
+    fractions = jh.FitConfig().link_fractions
+    assert float(image_merit(m, seq.cameras, exact, q, fractions, 2.0, 2.0)) == pytest.approx(1.0, abs=1e-12)
+    # 8 px^2 over the feature weights: e_r^2 = 8 / weight, merit 1 / (1 + e_r^2 / 4)
+    merit = float(image_merit(m, seq.cameras, exact, q, fractions, 2.0, 2.0, 8.0))
+    assert merit == pytest.approx(1.0 / (1.0 + 8.0 / weight / 4.0), rel=1e-12)
+    priors = _Priors.of(m, PriorConfig(temporal_sigma_deg=10.0, temporal_sigma_mm=5.0, temporal_merit=0.5))
+    q_pred = q + jnp.where(jnp.asarray(m.is_angle), np.radians(20.0), 0.0)   # every angle 2 sigmas off
+    n_angles = int(np.sum(np.asarray(m.q_kinds) == "angle"))
+    assert float(priors.merit_sq(q, q_pred)) == pytest.approx(0.5 * 4.0 * n_angles, rel=1e-9)
+    assert float(_Priors.of(m, PriorConfig(temporal_sigma_deg=10.0)).merit_sq(q, q_pred)) == 0.0
 
 
 def _track(seq, feats, config, frames=None):

@@ -105,6 +105,7 @@ class _Priors(eqx.Module):
     fixed: tuple
     temporal_weight: Float[Array, " nq"] | None
     information_ratio: Float[Array, ""] | None
+    temporal_merit: Float[Array, ""] | None = None
 
     @staticmethod
     def of(model: Model, config) -> _Priors:
@@ -118,7 +119,15 @@ class _Priors(eqx.Module):
         weight = (jnp.asarray(temporal_weight(model, config.temporal_sigma_deg, config.temporal_sigma_mm), dtype)
                   if config.temporal else None)
         ratio = jnp.asarray(config.information_ratio, dtype) if config.information_ratio else None
-        return _Priors(fixed=tuple(fixed), temporal_weight=weight, information_ratio=ratio)
+        merit = jnp.asarray(config.temporal_merit, dtype) if config.temporal_merit else None
+        return _Priors(fixed=tuple(fixed), temporal_weight=weight, information_ratio=ratio, temporal_merit=merit)
+
+    def merit_sq(self, q, q_pred) -> Float[Array, ""]:
+        """The squared fixed-sigma temporal residuals of ``q`` times :attr:`PriorConfig.temporal_merit`,
+        for a start's merit (0 where that is off)."""
+        if self.temporal_merit is None:
+            return jnp.zeros((), q.dtype)
+        return self.temporal_merit * jnp.sum((self.temporal_weight * (q - q_pred)) ** 2)
 
     def at(self, model: Model, rig: tuple, feats: tuple, q_pred, q_start, fractions) -> tuple:
         """The priors of one frame: the temporal prior around ``q_pred``, information-weighted by

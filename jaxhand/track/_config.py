@@ -169,6 +169,11 @@ class PriorConfig:
             the frame's features at the start of the solve (:func:`~jaxhand.priors.information_weight`):
             along a direction in q that the images see with ``l`` times the prior's information its
             weight is ``ratio / (ratio + l)`` of the full one (0: the fixed sigmas everywhere).
+        temporal_merit: traced, unitless. With several starts (``hypotheses``), each start's merit
+            also counts its pose's fixed-sigma temporal residuals ``(q - q_pred) / sigma`` times this,
+            beside the feature residuals (:func:`~jaxhand.track._hypotheses.image_merit`): the choice
+            then weighs the motion as the solves do, and a start that fits the image a little better
+            far from the prediction does not win by it alone (0: the image alone chooses).
         dip_pip_weight: traced, 1/rad. DIP-PIP coupling, ``w (q_dip - 2/3 q_pip)`` per finger (0: none).
         soft_limit_weight: traced, 1/rad. Soft joint limits beyond ``soft_limit_margin_deg`` (0: none).
         soft_limit_margin_deg: traced, deg. Where each soft limit starts, past its hard limit (the
@@ -178,6 +183,7 @@ class PriorConfig:
     temporal_sigma_deg: float | None = 0.0
     temporal_sigma_mm: float | None = 0.0
     information_ratio: float | None = 0.0
+    temporal_merit: float | None = 0.0
     dip_pip_weight: float | None = 0.0
     soft_limit_weight: float | None = 0.0
     soft_limit_margin_deg: float | None = 0.0
@@ -190,6 +196,8 @@ class PriorConfig:
             object.__setattr__(self, f.name, float(value))
         need(not self.information_ratio or bool(self.temporal_sigma_deg or self.temporal_sigma_mm),
               "prior.information_ratio", "weighs the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
+        need(not self.temporal_merit or self.temporal,
+             "prior.temporal_merit", "counts the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
 
     @property
     def temporal(self) -> bool:

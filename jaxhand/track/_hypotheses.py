@@ -130,18 +130,21 @@ def fold_starts(model: Model, camera, q_pred, n: int) -> Float[Array, "n nq"]:
     return starts.at[np.arange(n), jnp.asarray(joints)[order]].set(value)
 
 
-def image_merit(model: Model, rig: tuple, feats: tuple, q, fractions, scale_px, rms_scale_px) -> Float[Array, ""]:
+def image_merit(model: Model, rig: tuple, feats: tuple, q, fractions, scale_px, rms_scale_px, extra_sq=0.0
+                ) -> Float[Array, ""]:
     """A candidate pose's merit in (0, 1] from its image residuals, comparable across starts: the
-    robust RMS ``e_r = sqrt(sum w s^2 log(1 + (e/s)^2) / sum w)`` of the feature distances ``e``
-    at ``q`` with the front end's weights ``w`` and the Cauchy scale ``s``, as
-    ``1 / (1 + (e_r / rms_scale_px)^2)``. (The solves' own costs carry each start's reweighting.)"""
+    robust RMS ``e_r = sqrt((sum w s^2 log(1 + (e/s)^2) + extra_sq) / sum w)`` of the feature
+    distances ``e`` at ``q`` with the front end's weights ``w`` and the Cauchy scale ``s``, as
+    ``1 / (1 + (e_r / rms_scale_px)^2)``; ``extra_sq`` (px^2) adds other squared residuals, the
+    temporal prior's (:attr:`~jaxhand.track.PriorConfig.temporal_merit`). (The solves' own costs
+    carry each start's reweighting.)"""
     total, weight = 0.0, 0.0
     for f, (e_link, e_tip) in zip(feats, feature_distances(model, rig, feats, q, fractions)):
         for e, w, valid in ((e_link, f.line_weight, f.line_valid), (e_tip, f.tip_weight, f.tip_valid)):
             w = jnp.where(valid, w, 0.0)
             total = total + jnp.sum(w * scale_px ** 2 * jnp.log1p((e / scale_px) ** 2))
             weight = weight + jnp.sum(w)
-    rms = jnp.sqrt(total / jnp.maximum(weight, 1e-12))   # Guard: no valid feature gives 0, not NaN
+    rms = jnp.sqrt((total + extra_sq) / jnp.maximum(weight, 1e-12))   # Guard: no valid feature gives 0, not NaN
     return 1.0 / (1.0 + (rms / rms_scale_px) ** 2)
 
 
@@ -171,7 +174,7 @@ def candidates(model: Model, rig: tuple, feats: tuple, ghk: GHKState, extras, ex
     solved = jax.vmap(lambda q0: solve_frame(model, rig, feats, q_pred, q0, build, fit_config, numbers, passes,
                                              priors, terms))(starts)
     merit = jax.vmap(lambda q: image_merit(model, rig, feats, q, fractions, numbers.robust_scale_px,
-                                           numbers.rms_scale_px))(solved.q)
+                                           numbers.rms_scale_px, priors.merit_sq(q, q_pred)))(solved.q)
     merit = merit * solved.term_merit   # the measured terms judge too (solve_frame: 1 for the others)
     return _Candidates(solved=solved, merit=jnp.where(valid & solved.ok, merit, -1.0), features_ok=features_ok(feats),
                        starts=starts)
