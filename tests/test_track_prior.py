@@ -10,6 +10,8 @@
 - ``prior.temporal_merit``: a start's merit counts its temporal residuals beside the features'.
 """
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -191,3 +193,30 @@ def test_coupled_preset_carries_a_hidden_distal_joint_with_its_pip():
     # frames (the path's own ratio moves between 0.67 and 0.75), default 9.99 / 3.49
     assert errors["coupled"].max() < 6.0 and errors["coupled"].mean() < 2.6
     assert errors["default"].max() > 9.0 and errors["default"].mean() > errors["coupled"].mean() + 1.0
+
+
+@pytest.mark.slow
+def test_a_frame_after_a_doubtful_one_is_solved_without_the_temporal_prior(problem):
+    seq, feats = problem
+    dt = float(seq.times_s[1] - seq.times_s[0])
+    front = FunctionFrontEnd(lambda images, q, s, frame: feats[frame])
+    prior = {"temporal_sigma_deg": 2.0, "temporal_sigma_mm": 2.0, "temporal_merit": 0.1}
+    base = TrackConfig(reextract=0, filter=FilterConfig(report_solve=True)).merged(
+        {"hypotheses": {"flips": 2, "last_solve": True}})
+    gated = Tracker(seq.model, seq.cameras, front, base.merged({"prior": {**prior, "temporal_min_confidence": 0.5}}),
+                    dt_s=dt)
+    held = Tracker(seq.model, seq.cameras, front, base.merged({"prior": prior}), dt_s=dt)
+    free = Tracker(seq.model, seq.cameras, front, base, dt_s=dt)
+    state = gated.init(seq.q[0])
+    for k in range(3):
+        state, _ = gated.step(state, [None], k)
+    assert state.confidence > 0.5
+    doubtful = dataclasses.replace(state, confidence=0.4)
+    with CompileCounter() as counter:   # the untrusted frame reuses the compiled program
+        after_doubt = gated.step(doubtful, [None], 3)[1]
+    assert counter.count == 0
+    np.testing.assert_allclose(after_doubt.q_solved, free.step(doubtful, [None], 3)[1].q_solved, rtol=0, atol=1e-9)
+    after_good = gated.step(state, [None], 3)[1]
+    np.testing.assert_allclose(after_good.q_solved, held.step(state, [None], 3)[1].q_solved, rtol=0, atol=1e-9)
+    # sanity: the prior (sigma 2 deg) holds the solve measurably
+    assert np.abs(after_good.q_solved - after_doubt.q_solved).max() > np.radians(0.05)

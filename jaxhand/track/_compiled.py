@@ -359,6 +359,15 @@ def step_constants(model: Model, rig: tuple, config: TrackConfig, theta: float, 
             priors, config.filter.report_solve)
 
 
+def without_temporal(constants: tuple) -> tuple:
+    """:func:`step_constants` with the temporal prior's weight zeroed (so its residuals and merit
+    vanish): the same compiled program, for a frame whose prediction is not trusted."""
+    *head, priors, report_solve = constants
+    if priors.temporal_weight is not None:
+        priors = eqx.tree_at(lambda p: p.temporal_weight, priors, jnp.zeros_like(priors.temporal_weight))
+    return (*head, priors, report_solve)
+
+
 class FrameProgram:
     """The frame program of one tracker: its constant arguments split once, called per frame.
 
@@ -366,10 +375,14 @@ class FrameProgram:
         model, rig: the model and the cameras.
         config: the run's settings (the solver and its options checked once here).
         theta: the g-h-k discount per frame at this frame interval; dt_s: the interval (s).
+        temporal: False: without the temporal prior (:func:`without_temporal`).
     """
 
-    def __init__(self, model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float):
-        consts, static = eqx.partition(step_constants(model, rig, config, theta, dt_s), eqx.is_array)
+    def __init__(self, model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float,
+                 temporal: bool = True):
+        constants = step_constants(model, rig, config, theta, dt_s)
+        constants = constants if temporal else without_temporal(constants)
+        consts, static = eqx.partition(constants, eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(consts)
         self._consts, self._static = tuple(leaves), _Static((treedef, static))
 

@@ -174,6 +174,10 @@ class PriorConfig:
             beside the feature residuals (:func:`~jaxhand.track._hypotheses.image_merit`): the choice
             then weighs the motion as the solves do, and a start that fits the image a little better
             far from the prediction does not win by it alone (0: the image alone chooses).
+        temporal_min_confidence: host, in [0, 1]. The temporal prior (and its merit) hold only on a
+            frame after one whose confidence reached this (0: on every frame): a prediction from
+            a frame the tracker doubts is no motion to keep to, and a prior around it holds the
+            solve, and the choice among the starts, to the wrong pose.
         dip_pip_weight: traced, 1/rad. DIP-PIP coupling, ``w (q_dip - 2/3 q_pip)`` per finger (0: none).
         soft_limit_weight: traced, 1/rad. Soft joint limits beyond ``soft_limit_margin_deg`` (0: none).
         soft_limit_margin_deg: traced, deg. Where each soft limit starts, past its hard limit (the
@@ -184,6 +188,7 @@ class PriorConfig:
     temporal_sigma_mm: float | None = 0.0
     information_ratio: float | None = 0.0
     temporal_merit: float | None = 0.0
+    temporal_min_confidence: float | None = 0.0
     dip_pip_weight: float | None = 0.0
     soft_limit_weight: float | None = 0.0
     soft_limit_margin_deg: float | None = 0.0
@@ -198,6 +203,10 @@ class PriorConfig:
               "prior.information_ratio", "weighs the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
         need(not self.temporal_merit or self.temporal,
              "prior.temporal_merit", "counts the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
+        need(self.temporal_min_confidence <= 1.0, "prior.temporal_min_confidence",
+             f"must lie in [0, 1], got {self.temporal_min_confidence}")
+        need(not self.temporal_min_confidence or self.temporal, "prior.temporal_min_confidence",
+             "gates the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
 
     @property
     def temporal(self) -> bool:

@@ -40,7 +40,16 @@ from ..filter import GHKState
 from ..kinematics import clip_q, pose
 from ..model import Model
 from ..residuals import ResidualArgs, feature_distances, residuals_and_jacobian
-from ._compiled import SCALARS, _Solved, _Static, features_ok, finish_frame, solve_frame, step_constants
+from ._compiled import (
+    SCALARS,
+    _Solved,
+    _Static,
+    features_ok,
+    finish_frame,
+    solve_frame,
+    step_constants,
+    without_temporal,
+)
 from ._config import HypothesisConfig, TrackConfig
 
 __all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "image_merit", "choose", "runners_up", "recovery_starts",
@@ -234,11 +243,14 @@ def _chosen_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras
 
 class HypothesisProgram:
     """The multiple-start frame program of one tracker (its constants split once, like
-    :class:`~jaxhand.track._compiled.FrameProgram`). Each number of extra starts compiles once."""
+    :class:`~jaxhand.track._compiled.FrameProgram`, ``temporal`` as there). Each number of extra
+    starts compiles once."""
 
-    def __init__(self, model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float):
+    def __init__(self, model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float,
+                 temporal: bool = True):
         hyp = config.hypotheses
-        parts = (step_constants(model, rig, config, theta, dt_s),
+        constants = step_constants(model, rig, config, theta, dt_s)
+        parts = (constants if temporal else without_temporal(constants),
                  (hyp.flips, jnp.asarray(float(np.radians(hyp.flip_deg))), hyp.folds, hyp.coarse_steps))
         consts, static = eqx.partition(parts, eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(consts)

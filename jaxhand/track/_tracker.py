@@ -69,6 +69,7 @@ class TrackState:
         lost: whether the last frame was lost (the next frames then recover, :attr:`HypothesisConfig.recover`).
         weak_finger: the finger the image supported least on the last frame, when its confidence was
             under :attr:`HypothesisConfig.finger_level` (the next frame bends it); -1: none.
+        confidence: the last frame's confidence (:attr:`PriorConfig.temporal_min_confidence`).
     """
 
     ghk: GHKState
@@ -79,6 +80,7 @@ class TrackState:
     carried: np.ndarray | None = None
     lost: bool = False
     weak_finger: int = -1
+    confidence: float = 1.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -149,6 +151,10 @@ class Tracker:
         self.theta = config.filter.theta_per_frame(self.dt_s)
         self._program = FrameProgram(model, self.cameras, config, self.theta, self.dt_s)
         self._hypotheses = HypothesisProgram(model, self.cameras, config, self.theta, self.dt_s)
+        # the same programs without the temporal prior, for a frame after a doubtful one
+        self._untrusted = ((FrameProgram(model, self.cameras, config, self.theta, self.dt_s, temporal=False),
+                            HypothesisProgram(model, self.cameras, config, self.theta, self.dt_s, temporal=False))
+                           if config.prior.temporal_min_confidence else (self._program, self._hypotheses))
         # no host score to judge the starts by: the frame's choice is made in its compiled program
         self._choose_on_device = not (frontend.scores or config.support.judge_power > 0)
         self._rounds = 1 + (config.reextract if frontend.reextracts else 0)
@@ -202,24 +208,25 @@ class Tracker:
                               state.q_last if state.lost else None, frame, self._flexion.get(state.weak_finger))
         return extras if len(extras[0]) or hyp.flips or hyp.folds else None   # recovery alone: a frame after a good one
 
-    def _solve_hypotheses(self, feats, ghk, state: TrackState, extras, images, fe_state, terms: tuple) -> _Picked:
-        """Every start solved in one call, the front end's score of the candidates, the winner
-        committed (:mod:`jaxhand.track._hypotheses`); without a host score, all in one call."""
+    def _solve_hypotheses(self, program: HypothesisProgram, feats, ghk, state: TrackState, extras, images, fe_state,
+                          terms: tuple) -> _Picked:
+        """Every start solved in one call of ``program``, the front end's score of the candidates,
+        the winner committed (:mod:`jaxhand.track._hypotheses`); without a host score, all in one call."""
         rows, valid, labels = extras
         hyp = self.config.hypotheses
         rows, valid = np.asarray(rows, self._dtype), np.asarray(valid)   # jit takes NumPy arrays faster
         if self._choose_on_device:   # one call: the starts, the choice by merit and the commit
-            (packed, ghk_next), chosen = self._hypotheses.chosen(feats, ghk, rows, valid, state.q_last, terms)
+            (packed, ghk_next), chosen = program.chosen(feats, ghk, rows, valid, state.q_last, terms)
             packed, (qs, merit, winner) = jax.device_get((packed, chosen))   # one fetch; the filter state stays
             results, winner, t_score = (packed, ghk_next), int(winner), 0.0
             total = choose(merit)[1] if hyp.carry else merit
         else:
-            cands = self._hypotheses.candidates(feats, ghk, rows, valid, terms)
+            cands = program.candidates(feats, ghk, rows, valid, terms)
             qs, merit = (np.asarray(a) for a in jax.device_get((cands.solved.q, cands.merit)))
             t0 = time.perf_counter()
             winner, total = choose(merit, self._scores(images, qs, merit, fe_state))
             t_score = time.perf_counter() - t0
-            results = self._hypotheses.commit(cands, winner, ghk, state.q_last)
+            results = program.commit(cands, winner, ghk, state.q_last)
         carried = runners_up(qs, total, winner, hyp.carry, hyp.carry_margin, float(np.radians(hyp.carry_min_deg)),
                              self._is_angle)
         labels = ("prediction",) + ("flip",) * self._hypotheses.n_flips + ("fold",) * self._hypotheses.n_folds + labels
@@ -286,6 +293,8 @@ class Tracker:
         t_features = t_solve = 0.0
         q_start, fe_state = q_pred, state.frontend_state
         extras = self._extra_starts(state, proposals, frame)
+        trusted = state.confidence >= self.config.prior.temporal_min_confidence
+        program, hypotheses = (self._program, self._hypotheses) if trusted else self._untrusted
         picked = _Picked()
         for r in range(self._rounds):
             t0 = time.perf_counter()
@@ -295,10 +304,11 @@ class Tracker:
             feats = self._feature_arrays(extracted.features)
             frame_terms = tuple(extracted.terms) + tuple(terms)
             if r == 0 and extras is not None:
-                picked = self._solve_hypotheses(feats, ghk, state, extras, images, fe_state, frame_terms)
+                picked = self._solve_hypotheses(hypotheses, feats, ghk, state, extras, images, fe_state,
+                                                frame_terms)
                 (q_meas, filtered, scalars), ghk_next = picked.results
             else:
-                (q_meas, filtered, scalars), ghk_next = self._program(feats, ghk, state.q_last, q_start, frame_terms)
+                (q_meas, filtered, scalars), ghk_next = program(feats, ghk, state.q_last, q_start, frame_terms)
             q_pred_host, q_meas, filtered, scalars = jax.device_get((q_pred, q_meas, filtered, scalars))  # one fetch
             out = dict(zip(SCALARS, scalars.tolist()))
             t2 = time.perf_counter()
@@ -340,4 +350,5 @@ class Tracker:
                             starts=picked.starts, reinitialised=state.lost and not lost)
         ghk_next = jax.tree_util.tree_unflatten(self._ghk_tree, ghk_next)
         return TrackState(ghk=ghk_next, frontend_state=fe_state, q_last=filtered, score_reference=reference,
-                          q_solved=q_meas, carried=picked.carried, lost=lost, weak_finger=weak), report
+                          q_solved=q_meas, carried=picked.carried, lost=lost, weak_finger=weak,
+                          confidence=confidence), report
