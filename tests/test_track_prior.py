@@ -7,7 +7,9 @@
 - no recompilation across frames or for new prior numbers;
 - on exact features the information-weighted prior's reported estimate is no worse than the raw
   solve without priors;
-- ``prior.temporal_merit``: a start's merit counts its temporal residuals beside the features'.
+- ``prior.temporal_merit``: a start's merit counts its temporal residuals beside the features';
+- ``prior.temporal_min_confidence``: after a doubtful frame the solve is the one without the
+  temporal prior, from the same compiled program.
 """
 
 import dataclasses
