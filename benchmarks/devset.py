@@ -221,9 +221,27 @@ def main(argv=None) -> None:
                 print(" | ".join(rows[-1]), flush=True)
     print(format_table(rows, ["sequence", "setting", "features", "seed", "mean", "max", "raw mean", "raw max", "lost",
                               "fps", "frames >15° in a row", "flagged >8px", "flagged <3px"]))
+    print(format_table(pooled_flag_rows(records), ["setting", "features", "seed", "sequences",
+                                                   "frames >8px flagged", "frames <3px flagged"]))
     if args.seeds > 1:
         print(format_table(spread_rows(records), ["sequence", "setting", "features", "runs", "median of means",
                                                   "min", "max"]))
+
+
+def pooled_flag_rows(records) -> list[list[str]]:
+    """Per setting, features and seed: the loss flag's hit rates pooled over the sequences run
+    (issue 13's target: >= 90 % of the frames over 8 px flagged, <= 5 % of those under 3 px)."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in records:
+        groups.setdefault((r["setting"], r["features"], r["seed"]), []).append(r)
+    rows = []
+    for (setting, features, seed), runs in groups.items():
+        q = loss_flag_quality(*(np.concatenate([r[key] for r in runs]) for key in
+                                ("per_frame_tip_px", "per_frame_confidence", "per_frame_lost")))
+        counts = [f"{round((q[share] or 0.0) * q[frames])} / {q[frames]}"
+                  for share, frames in (("flagged_bad", "frames_bad"), ("flagged_good", "frames_good"))]
+        rows.append([setting, features, str(seed), str(len(runs)), *counts])
+    return rows
 
 
 def spread_rows(records) -> list[list[str]]:
