@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import sys
 import time
 from pathlib import Path
@@ -186,7 +187,7 @@ def devset(names: list[str], args) -> dict:
     """Track each dev-set sequence with the default settings, image and exact features (0.5 px
     noise, and none: ``exact_0px``), and the filter off with ``--raw``; print the table and return
     the runs by sequence."""
-    base = TrackConfig().preset(args.preset)
+    base = TrackConfig().preset(args.preset).merged(args.extra)
     configs = {"": base}
     if args.raw:
         configs["_unfiltered"] = base.merged({"filter": {"enabled": False}})
@@ -233,6 +234,9 @@ def main(argv=None) -> int:
     parser.add_argument("--size", default="320x240", help="image size WxH")
     parser.add_argument("--preset", default="thesis", choices=tuple(PRESETS),
                         help="TrackConfig preset applied to every run (default: thesis, the defaults)")
+    parser.add_argument("--extra", type=json.loads, default={},
+                        help="a JSON mapping merged over every run's settings after the preset, for a trial "
+                             "(e.g. '{\"prior\": {\"temporal_sigma_deg\": 15}}'); the results file gains _extra")
     parser.add_argument("--frames", type=int, help="frames per sequence (default: each experiment's own)")
     parser.add_argument("--sweep", action="store_true", help="the two-finger motion (or --only) at 6 speeds")
     parser.add_argument("--radius-scale", type=float, default=1.0,
@@ -263,6 +267,7 @@ def main(argv=None) -> int:
         config = track_config(solver, steps, args.theta, reextract if args.reextract is None else args.reextract,
                               args.robust)
         config = dataclasses.replace(config, image=image_config(method, exp, args)).preset(args.preset)
+        config = config.merged(args.extra)
         entry = {"method": method, "solver": solver, "steps": steps, "theta": args.theta, "size": args.size,
                  "robust_passes": config.robust.passes, "reextract": config.reextract, "render_s": render_s,
                  "radius_scale": args.radius_scale, "width_gain": args.width_gain,
@@ -295,6 +300,7 @@ def main(argv=None) -> int:
     if not args.quick:
         stem = "tracking" + (f"_{args.only}" if args.only else "")
         stem += f"_{args.preset}" if args.preset != "thesis" else ""
+        stem += "_extra" if args.extra else ""
         if args.radius_scale != 1.0 or args.width_gain:
             stem += f"_r{args.radius_scale:g}_g{args.width_gain:g}"
         path = RESULTS / f"{stem}.json"
