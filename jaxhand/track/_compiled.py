@@ -122,6 +122,13 @@ class _Priors(eqx.Module):
         merit = jnp.asarray(config.temporal_merit, dtype) if config.temporal_merit else None
         return _Priors(fixed=tuple(fixed), temporal_weight=weight, information_ratio=ratio, temporal_merit=merit)
 
+    def without_temporal(self) -> _Priors:
+        """These priors with the temporal weight zeroed (its residuals and merit vanish): the same
+        compiled program, for a frame whose prediction is not trusted."""
+        if self.temporal_weight is None:
+            return self
+        return eqx.tree_at(lambda p: p.temporal_weight, self, jnp.zeros_like(self.temporal_weight))
+
     def merit_sq(self, q, q_pred) -> Float[Array, ""]:
         """The squared fixed-sigma temporal residuals of ``q`` times :attr:`PriorConfig.temporal_merit`,
         for a start's merit (0 where that is off)."""
@@ -342,10 +349,12 @@ def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last,
     return (out.q_solved, out.q_filtered, scalars), (out.ghk.x, out.ghk.v, out.ghk.a)
 
 
-def step_constants(model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float) -> tuple:
+def step_constants(model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float,
+                   temporal: bool = True) -> tuple:
     """The constant arguments of :func:`frame_step` after the frame's own, in its order (model, rig,
     build, fit_config, numbers, passes, use_filter, hold, priors, report_solve), the solver and its
-    options checked once here: what :class:`FrameProgram` (and the hypotheses' program) split."""
+    options checked once here: what :class:`FrameProgram` (and the hypotheses' program) split.
+    ``temporal`` False: the temporal prior's weight zeroed (:meth:`_Priors.without_temporal`)."""
     build, fit_config = solver_program(config.solver, config.fit)
     fc = config.filter
     keep_unseen = float(np.exp(-dt_s / fc.unseen_decay_s)) if fc.unseen_decay_s > 0 else 0.0
@@ -355,17 +364,9 @@ def step_constants(model: Model, rig: tuple, config: TrackConfig, theta: float, 
         keep_unseen)),
         damp_unseen=fc.enabled and fc.damp_unseen)
     priors = _Priors.of(model, config.prior)
+    priors = priors if temporal else priors.without_temporal()
     return (model, rig, build, fit_config, numbers, config.robust.passes, config.filter.enabled, config.loss.hold,
             priors, config.filter.report_solve)
-
-
-def without_temporal(constants: tuple) -> tuple:
-    """:func:`step_constants` with the temporal prior's weight zeroed (so its residuals and merit
-    vanish): the same compiled program, for a frame whose prediction is not trusted."""
-    *head, priors, report_solve = constants
-    if priors.temporal_weight is not None:
-        priors = eqx.tree_at(lambda p: p.temporal_weight, priors, jnp.zeros_like(priors.temporal_weight))
-    return (*head, priors, report_solve)
 
 
 class FrameProgram:
@@ -375,14 +376,12 @@ class FrameProgram:
         model, rig: the model and the cameras.
         config: the run's settings (the solver and its options checked once here).
         theta: the g-h-k discount per frame at this frame interval; dt_s: the interval (s).
-        temporal: False: without the temporal prior (:func:`without_temporal`).
+        temporal: False: without the temporal prior (:meth:`_Priors.without_temporal`).
     """
 
     def __init__(self, model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float,
                  temporal: bool = True):
-        constants = step_constants(model, rig, config, theta, dt_s)
-        constants = constants if temporal else without_temporal(constants)
-        consts, static = eqx.partition(constants, eqx.is_array)
+        consts, static = eqx.partition(step_constants(model, rig, config, theta, dt_s, temporal), eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(consts)
         self._consts, self._static = tuple(leaves), _Static((treedef, static))
 

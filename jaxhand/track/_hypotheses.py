@@ -40,16 +40,7 @@ from ..filter import GHKState
 from ..kinematics import clip_q, pose
 from ..model import Model
 from ..residuals import ResidualArgs, feature_distances, residuals_and_jacobian
-from ._compiled import (
-    SCALARS,
-    _Solved,
-    _Static,
-    features_ok,
-    finish_frame,
-    solve_frame,
-    step_constants,
-    without_temporal,
-)
+from ._compiled import SCALARS, _Solved, _Static, features_ok, finish_frame, solve_frame, step_constants
 from ._config import HypothesisConfig, TrackConfig
 
 __all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "image_merit", "choose", "runners_up", "recovery_starts",
@@ -249,8 +240,7 @@ class HypothesisProgram:
     def __init__(self, model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float,
                  temporal: bool = True):
         hyp = config.hypotheses
-        constants = step_constants(model, rig, config, theta, dt_s)
-        parts = (constants if temporal else without_temporal(constants),
+        parts = (step_constants(model, rig, config, theta, dt_s, temporal),
                  (hyp.flips, jnp.asarray(float(np.radians(hyp.flip_deg))), hyp.folds, hyp.coarse_steps))
         consts, static = eqx.partition(parts, eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(consts)
