@@ -9,7 +9,9 @@
   solve without priors;
 - ``prior.temporal_merit``: a start's merit counts its temporal residuals beside the features';
 - ``prior.temporal_min_confidence``: after a doubtful frame the solve is the one without the
-  temporal prior, from the same compiled program.
+  temporal prior, from the same compiled program;
+- ``prior.restore_hidden_below``: after a doubtful frame the joints that move only links the
+  support did not judge are predicted at the last trusted pose, still; the others as before.
 """
 
 import dataclasses
@@ -28,6 +30,7 @@ from jaxhand.solve.internal import fit_traced, solver_program
 from jaxhand.track import ExactFrontEnd, FilterConfig, PriorConfig, RobustConfig, TrackConfig, Tracker
 from jaxhand.track._compiled import _Priors
 from jaxhand.track._hypotheses import image_merit
+from jaxhand.track._support import ImageSupport, moved_links
 
 
 @pytest.fixture(scope="module")
@@ -222,3 +225,61 @@ def test_a_frame_after_a_doubtful_one_is_solved_without_the_temporal_prior(probl
     np.testing.assert_allclose(after_good.q_solved, held.step(state, [None], 3)[1].q_solved, rtol=0, atol=1e-9)
     # sanity: the prior (sigma 2 deg) holds the solve measurably
     assert np.abs(after_good.q_solved - after_doubt.q_solved).max() > np.radians(0.05)
+
+
+def test_moved_links_are_the_links_at_and_below_each_joint(problem):
+    seq, _ = problem
+    m = seq.model   # middle_mcp, _pip, _dip, index_mcp, _pip, _dip: one link per joint, two chains
+    chain = np.triu(np.ones((3, 3), bool))
+    np.testing.assert_array_equal(moved_links(m), np.block([[chain, np.zeros((3, 3), bool)],
+                                                            [np.zeros((3, 3), bool), chain]]))
+    hand = jh.builtin_model("hand21")   # a free base moves every link
+    moves = moved_links(hand)
+    assert moves[: hand.n_base_q].all() and moves.shape == (hand.n_q, hand.n_links)
+    pip = hand.q_lookup("index_pip")
+    assert {hand.link_names[i] for i in np.flatnonzero(moves[pip])} == {"index_pip", "index_dip"}
+
+
+class _Hiding(FunctionFrontEnd):
+    """Features from ``fn``; the support judges every link but ``hidden_links`` (at ``score``)."""
+
+    def __init__(self, fn, n_links, hidden_links, score=1.0):
+        super().__init__(fn)
+        self.link_score = np.full((1, n_links), score)
+        self.link_score[0, list(hidden_links)] = np.nan
+
+    def support(self, images, q, state, margin_px=1):
+        return ImageSupport(link_score=self.link_score)
+
+
+def test_after_a_doubtful_frame_hidden_joints_restart_from_the_trusted_pose(problem):
+    seq, feats = problem
+    m = seq.model
+    dt = float(seq.times_s[1] - seq.times_s[0])
+    front = _Hiding(lambda images, q, s, frame: feats[frame], m.n_links, [m.link_names.index("index_dip")])
+    config = TrackConfig(reextract=0, filter=FilterConfig(report_solve=True)).merged(
+        {"support": {"enabled": True}, "prior": {"restore_hidden_below": 0.5}})
+    tracker = Tracker(m, seq.cameras, front, config, dt_s=dt)
+    state = tracker.init(seq.q[0])
+    for k in range(3):
+        state, report = tracker.step(state, [None], k)
+    assert report.confidence >= 0.5
+    dip = m.q_lookup("index_dip")
+    np.testing.assert_array_equal(state.hidden, [dip])   # the only joint that moves index_dip alone
+    np.testing.assert_array_equal(state.q_trusted, report.q_filtered)
+    trusted = np.clip(seq.q[0] + 0.3, m.q_lower, m.q_upper)
+    doubtful = dataclasses.replace(state, confidence=0.4, q_trusted=trusted)
+    pred = np.asarray(state.ghk.x)
+    after = tracker.step(doubtful, [None], 3)[1].q_pred
+    assert after[dip] == pytest.approx(trusted[dip], abs=1e-12)
+    others = np.arange(m.n_q) != dip
+    np.testing.assert_allclose(after[others], pred[others], rtol=0, atol=1e-12)
+    assert abs(pred[dip] - trusted[dip]) > 0.1   # sanity: the restore moved it
+    # after a good frame the prediction is the filter's, whatever the trusted pose
+    np.testing.assert_allclose(tracker.step(dataclasses.replace(state, q_trusted=trusted), [None], 3)[1].q_pred,
+                               pred, rtol=0, atol=1e-12)
+    # a frame under the level keeps the old trusted pose
+    low = _Hiding(front.fn, m.n_links, [], score=0.0)
+    low_state, low_report = Tracker(m, seq.cameras, low, config, dt_s=dt).step(doubtful, [None], 3)
+    assert low_report.confidence < 0.5
+    np.testing.assert_array_equal(low_state.q_trusted, trusted)

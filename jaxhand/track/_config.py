@@ -178,6 +178,12 @@ class PriorConfig:
             frame after one whose confidence reached this (0: on every frame): a prediction from
             a frame the tracker doubts is no motion to keep to, and a prior around it holds the
             solve, and the choice among the starts, to the wrong pose.
+        restore_hidden_below: host, in [0, 1]. After a frame whose confidence fell under this, the
+            joints the image did not show on it (those that move no link the front end's support
+            judged) start again, still, from the last trusted pose (the estimate of the last frame
+            whose confidence reached it): a doubtful frame's solve may move a hidden finger where
+            the image cannot correct it, and a temporal prior would then hold it there (0: off;
+            needs ``support.enabled``).
         dip_pip_weight: traced, 1/rad. DIP-PIP coupling, ``w (q_dip - 2/3 q_pip)`` per finger (0: none).
         soft_limit_weight: traced, 1/rad. Soft joint limits beyond ``soft_limit_margin_deg`` (0: none).
         soft_limit_margin_deg: traced, deg. Where each soft limit starts, past its hard limit (the
@@ -189,6 +195,7 @@ class PriorConfig:
     information_ratio: float | None = 0.0
     temporal_merit: float | None = 0.0
     temporal_min_confidence: float | None = 0.0
+    restore_hidden_below: float | None = 0.0
     dip_pip_weight: float | None = 0.0
     soft_limit_weight: float | None = 0.0
     soft_limit_margin_deg: float | None = 0.0
@@ -207,6 +214,8 @@ class PriorConfig:
              f"must lie in [0, 1], got {self.temporal_min_confidence}")
         need(not self.temporal_min_confidence or self.temporal, "prior.temporal_min_confidence",
              "gates the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
+        need(self.restore_hidden_below <= 1.0, "prior.restore_hidden_below",
+             f"must lie in [0, 1], got {self.restore_hidden_below}")
 
     @property
     def temporal(self) -> bool:
@@ -312,6 +321,8 @@ class TrackConfig:
             raise InputError(f"fit.{str(err).removeprefix('config.')}") from None
         count(self.reextract, "reextract")
         flag(self.refresh_templates, "refresh_templates")
+        need(not self.prior.restore_hidden_below or self.support.enabled or bool(self.hypotheses.finger_level),
+             "prior.restore_hidden_below", "needs the image support to tell hidden joints: set support.enabled")
 
     def __eq__(self, other) -> bool:   # by value: FitConfig holds arrays
         return isinstance(other, TrackConfig) and config_to_dict(self) == config_to_dict(other)

@@ -25,8 +25,9 @@ import numpy as np
 from .._errors import InputError
 from ..model import Model
 
-__all__ = ["SupportConfig", "ImageSupport", "finger_of_frame", "finger_of_link", "finger_supports", "weakest_finger",
-           "tip_link_scores", "judge_weights", "support_confidence", "largest_unexplained_px", "unexplained_confidence"]
+__all__ = ["SupportConfig", "ImageSupport", "finger_of_frame", "finger_of_link", "moved_links", "finger_supports",
+           "weakest_finger", "tip_link_scores", "judge_weights", "support_confidence", "largest_unexplained_px",
+           "unexplained_confidence"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,6 +110,24 @@ def finger_of_link(model: Model) -> np.ndarray:
     """(n_links,) each link's finger (:func:`finger_of_frame` of its frame); -1 for a link on the
     base frame itself, which no finger judges."""
     return finger_of_frame(model)[np.asarray(model.link_frame, int)]
+
+
+def moved_links(model: Model) -> np.ndarray:
+    """(n_q, n_links) bool: whether q entry ``j`` moves link ``l`` (the link's frame is the joint's
+    frame or below it); a free or planar base's entries move every link."""
+    parents = model.parents
+    below = np.eye(len(parents), dtype=bool)   # below[f, g]: frame g is f or a descendant of f
+    for g in range(len(parents)):
+        f = parents[g]
+        while f >= 0:
+            below[f, g] = True
+            f = parents[f]
+    out = np.zeros((model.n_q, model.n_links), bool)
+    out[: model.n_base_q] = True
+    for f, j in enumerate(model.q_index):
+        if j >= model.n_base_q:
+            out[j] = below[f][np.asarray(model.link_frame, int)]
+    return out
 
 
 def finger_supports(link_scores, finger: np.ndarray) -> dict[int, float]:

@@ -46,6 +46,7 @@ from ._support import (
     finger_of_link,
     finger_supports,
     judge_weights,
+    moved_links,
     support_confidence,
     tip_link_scores,
     unexplained_confidence,
@@ -70,6 +71,10 @@ class TrackState:
         weak_finger: the finger the image supported least on the last frame, when its confidence was
             under :attr:`HypothesisConfig.finger_level` (the next frame bends it); -1: none.
         confidence: the last frame's confidence (:attr:`PriorConfig.temporal_min_confidence`).
+        q_trusted: the estimate of the last frame whose confidence reached
+            :attr:`PriorConfig.restore_hidden_below` (the initial pose before one did).
+        hidden: the q entries the image did not show on the last frame (they move no link the
+            front end's support judged; empty when it was not measured).
     """
 
     ghk: GHKState
@@ -81,6 +86,8 @@ class TrackState:
     lost: bool = False
     weak_finger: int = -1
     confidence: float = 1.0
+    q_trusted: np.ndarray | None = None
+    hidden: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -165,6 +172,7 @@ class Tracker:
         self._shapes = ((nl, 3), (nl,), (nl,), (nt, 2), (nt,), (nt,))
         self._finger = finger_of_link(model)
         self._flexion = flexion_hinges(model, finger_of_frame(model))
+        self._moves = moved_links(model)
         self._is_angle = np.asarray(model.is_angle)
 
     def _feature_arrays(self, features) -> tuple[tuple, ...]:
@@ -195,7 +203,7 @@ class Tracker:
     def init(self, q0, frontend_state=None) -> TrackState:
         """The state before the first frame: the filter sits at q0 with zero velocity."""
         q0 = validate_q(self.model, q0, name="initial pose", within_limits=True)
-        return TrackState(ghk=ghk_init(jnp.asarray(q0)), frontend_state=frontend_state, q_last=q0)
+        return TrackState(ghk=ghk_init(jnp.asarray(q0)), frontend_state=frontend_state, q_last=q0, q_trusted=q0)
 
     def _extra_starts(self, state: TrackState, proposals, frame: int):
         """The host's extra starts of this frame (:func:`extra_starts`), or None when the frame has
@@ -254,21 +262,22 @@ class Tracker:
         full[good] = scores
         return full
 
-    def _support(self, images, q, fe_state) -> tuple[float, dict[int, float]]:
+    def _support(self, images, q, fe_state) -> tuple[float, dict[int, float], np.ndarray]:
         """The image's support of ``q`` as a confidence, the lower of the weakest finger's (by its
         tip's link alone with ``support.tip_links``) and the unexplained foreground's
         (:mod:`jaxhand.track._support`; 1 when the front end measures none), and each finger's
-        support (all its links)."""
+        support (all its links), and the q entries that move no judged link (hidden joints)."""
         config = self.config.support
         measured = self.frontend.support(images, q, fe_state, config.margin_px)
         if measured is None:
-            return 1.0, {}
+            return 1.0, {}, np.zeros(0, int)
         fingers = finger_supports(measured.link_score, self._finger)
         judged = (finger_supports(tip_link_scores(measured.link_score, self.model.tip_links), self._finger)
                   if config.tip_links else fingers)
         weakest = min(judged.values(), default=float("nan"))
         confidence = min(support_confidence(weakest, config), unexplained_confidence(measured.unexplained_px, config))
-        return confidence, fingers
+        judged_link = np.isfinite(np.asarray(measured.link_score, float).reshape(-1, self.model.n_links)).any(0)
+        return confidence, fingers, np.flatnonzero(~(self._moves & judged_link).any(1) & self._moves.any(1))
 
     def step(self, state: TrackState, images: Sequence[np.ndarray | None], frame: int = 0, time_s: float = 0.0,
              proposals=None, terms: tuple = ()) -> tuple[TrackState, StepReport]:
@@ -288,6 +297,8 @@ class Tracker:
         """
         if len(images) != len(self.cameras):
             raise InputError(f"expected one image per camera ({len(self.cameras)}), got {len(images)}")
+        if state.confidence < self.config.prior.restore_hidden_below and len(state.hidden):
+            state = self._restore_hidden(state)
         q_pred = state.ghk.x
         ghk = (state.ghk.x, state.ghk.v, state.ghk.a)
         t_features = t_solve = 0.0
@@ -327,9 +338,9 @@ class Tracker:
                                                                state.score_reference)
         if lost and not out["lost"] and self.config.loss.hold:   # lost by the image score: hold still
             filtered, ghk_next = np.asarray(state.q_last), held_filter(state.q_last)
-        weak, finger_level = -1, self.config.hypotheses.finger_level
+        weak, finger_level, hidden = -1, self.config.hypotheses.finger_level, np.zeros(0, int)
         if (self.config.support.enabled or finger_level) and not lost:
-            support, fingers = self._support(images, filtered, fe_state)
+            support, fingers, hidden = self._support(images, filtered, fe_state)
             if self.config.support.enabled:
                 confidence = min(confidence, support)
             if confidence < finger_level and fingers:
@@ -351,4 +362,15 @@ class Tracker:
         ghk_next = jax.tree_util.tree_unflatten(self._ghk_tree, ghk_next)
         return TrackState(ghk=ghk_next, frontend_state=fe_state, q_last=filtered, score_reference=reference,
                           q_solved=q_meas, carried=picked.carried, lost=lost, weak_finger=weak,
-                          confidence=confidence), report
+                          confidence=confidence, hidden=hidden,
+                          q_trusted=filtered if confidence >= self.config.prior.restore_hidden_below
+                          else state.q_trusted), report
+
+    def _restore_hidden(self, state: TrackState) -> TrackState:
+        """``state`` with the filter's hidden entries back at the last trusted pose, still
+        (:attr:`PriorConfig.restore_hidden_below`): a doubtful frame's solve may have moved them
+        where the image cannot correct them."""
+        idx = np.asarray(state.hidden, int)
+        x = state.ghk.x.at[idx].set(jnp.asarray(state.q_trusted)[idx])
+        ghk = GHKState(x=x, v=state.ghk.v.at[idx].set(0.0), a=state.ghk.a.at[idx].set(0.0))
+        return dataclasses.replace(state, ghk=ghk)
