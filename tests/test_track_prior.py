@@ -26,6 +26,7 @@ import jaxhand as jh
 from jaxhand.features import features_from_pose
 from jaxhand.priors import TemporalPrior, information_weight, temporal_weight
 from jaxhand.render import make_preset
+from jaxhand.residuals import ResidualArgs, residuals_and_jacobian
 from jaxhand.solve.internal import fit_traced, solver_program
 from jaxhand.track import ExactFrontEnd, FilterConfig, PriorConfig, RobustConfig, TrackConfig, Tracker
 from jaxhand.track._compiled import _Priors
@@ -78,6 +79,30 @@ def test_information_weight_is_full_where_unseen_and_fades_where_seen():
     S = np.diag([0.5, 1 / 3, 0.0])
     L = S @ np.asarray(lam) @ S
     np.testing.assert_allclose(W.T @ W, D @ (0.5 * np.linalg.inv(0.5 * np.eye(3) + L)) @ D, atol=1e-12)
+
+
+def test_information_weight_counts_the_measured_terms_beside_the_features(problem):
+    seq, _ = problem
+    m, q = seq.model, jnp.asarray(seq.q[3])
+    feats = tuple(features_from_pose(m, seq.cameras, q))
+    fractions = jh.FitConfig().link_fractions
+    priors = _Priors.of(m, PriorConfig(temporal_sigma_deg=10.0, information_ratio=1.0))
+    pip = m.q_lookup("index_pip")
+
+    def term(x):   # a measurement of index_pip alone (px), slope 100 x
+        return 50.0 * x[pip:pip + 1] ** 2
+
+    with_term, = priors.at(m, seq.cameras, feats, q, q, fractions, (term,))
+    without, = priors.at(m, seq.cameras, feats, q, q, fractions)
+    _, J = residuals_and_jacobian(q, ResidualArgs(model=m, cameras=seq.cameras, features=feats,
+                                                      fractions=fractions))
+    J_term = np.zeros((1, m.n_q))
+    J_term[0, pip] = 100.0 * float(q[pip])
+    expected = information_weight(priors.temporal_weight, J.T @ J + J_term.T @ J_term, 1.0)
+    np.testing.assert_allclose(np.asarray(with_term.weight), np.asarray(expected), rtol=1e-9, atol=1e-12)
+    # sanity: the term's information lowers the prior's weight along index_pip
+    assert np.linalg.norm(np.asarray(with_term.weight) @ np.eye(m.n_q)[pip]) < 0.9 * np.linalg.norm(
+        np.asarray(without.weight) @ np.eye(m.n_q)[pip])
 
 
 def test_temporal_merit_counts_the_prior_residuals_beside_the_features(problem):

@@ -136,16 +136,22 @@ class _Priors(eqx.Module):
             return jnp.zeros((), q.dtype)
         return self.temporal_merit * jnp.sum((self.temporal_weight * (q - q_pred)) ** 2)
 
-    def at(self, model: Model, rig: tuple, feats: tuple, q_pred, q_start, fractions) -> tuple:
+    def at(self, model: Model, rig: tuple, feats: tuple, q_pred, q_start, fractions, measured: tuple = ()) -> tuple:
         """The priors of one frame: the temporal prior around ``q_pred``, information-weighted by
-        the features (with the front end's weights) at ``q_start`` when :attr:`information_ratio` is set."""
+        the features (with the front end's weights) and the frame's ``measured`` terms (bound
+        priors of image measurements, e.g. the silhouette) at ``q_start`` when
+        :attr:`information_ratio` is set: what a term sees (a finger's length) is the image's to say."""
         if self.temporal_weight is None:
             return self.fixed
         weight = self.temporal_weight
         if self.information_ratio is not None:
             args = ResidualArgs(model=model, cameras=rig, features=feats, fractions=fractions)
             _, J = residuals_and_jacobian(q_start, args)
-            weight = information_weight(weight, J.T @ J, self.information_ratio)
+            information = J.T @ J
+            for term in measured:
+                J_term = jax.jacfwd(term)(q_start)
+                information = information + J_term.T @ J_term
+            weight = information_weight(weight, information, self.information_ratio)
         return (TemporalPrior(q_pred=q_pred, weight=weight),) + self.fixed
 
 
@@ -248,8 +254,10 @@ def solve_frame(model: Model, rig: tuple, feats: tuple, q_pred, q_start, build, 
     fractions = fit_config.link_fractions
     # the information of the front end's own weights: the gate would shrink it wherever the
     # prediction is off, and so hold the solve back exactly where it has to move
-    frame_priors = () if priors is None else priors.at(model, rig, feats, q_pred, q_start, fractions)
-    frame_priors = frame_priors + tuple(term.bind(model, rig) for term in terms)
+    bound = tuple(term.bind(model, rig) for term in terms)
+    frame_priors = () if priors is None else priors.at(model, rig, feats, q_pred, q_start, fractions,
+                                                        tuple(b for b, t in zip(bound, terms) if t.judged))
+    frame_priors = frame_priors + bound
     result = robust_solve(model, rig, feats, q_start, build, fit_config, numbers.robust_scale_px, passes,
                           numbers.gate_scale_px, frame_priors)
     ok = jnp.all(jnp.isfinite(result.q)) & jnp.isfinite(result.cost)
