@@ -65,11 +65,8 @@ SETTINGS = {
                                          "temporal_sigma_mm": 10.0, "information_ratio": 1.0,
                                          "temporal_merit": 0.1}},
     # ... and after a doubtful frame (confidence under 0.5) the joints the support saw no link of
-    # restart from the last trusted pose (prior.restore_hidden_below; 2026-12-04, third session)
-    "robust-limits+temporal+restore": {**PRESETS["robust-limits"],
-                                       "prior": {**PRESETS["robust-limits"]["prior"], "temporal_sigma_deg": 15.0,
-                                                 "temporal_sigma_mm": 10.0, "information_ratio": 1.0,
-                                                 "temporal_merit": 0.1, "restore_hidden_below": 0.5}},
+    # restart from the last trusted pose (= the "robust-temporal" preset; 2026-12-04, third session)
+    "robust-limits+temporal+restore": PRESETS["robust-temporal"],
     # ... as it was before 2026-12-03's second session (no finger starts, the share itself in the confidence)
     "robust-limits-nofinger": {**PRESETS["robust-limits"],
                                "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "finger_level": 0.0},

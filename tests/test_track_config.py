@@ -154,6 +154,12 @@ def test_presets_apply_named_changes_and_unknown_names_are_listed():
                           "support": {"tip_links": False, "lost": 0.80, "good": 0.96}}) == robust
     assert config_from_dict(config_to_dict(limits)) == limits
     assert config_from_dict(config_to_dict(robust)) == robust
+    temporal = TrackConfig().preset("robust-temporal")   # robust-limits with the temporal prior and the restart
+    assert temporal.merged({"prior": {"temporal_sigma_deg": 0.0, "temporal_sigma_mm": 0.0, "information_ratio": 0.0,
+                                      "temporal_merit": 0.0, "restore_hidden_below": 0.0}}) == limits
+    assert (temporal.prior.temporal_sigma_deg, temporal.prior.information_ratio) == (15.0, 1.0)
+    assert (temporal.prior.temporal_merit, temporal.prior.restore_hidden_below) == (0.1, 0.5)
     with pytest.raises(jh.InputError,
-                       match="preset: unknown preset 'fast'; valid: thesis, robust, robust-limits, coupled"):
+                       match="preset: unknown preset 'fast'; valid: thesis, robust, robust-limits, coupled, "
+                             "robust-temporal"):
         TrackConfig().preset("fast")

@@ -17,6 +17,12 @@ __all__ = ["PRESETS"]
 #: the confidence judges each finger by its fingertip's link (``support.tip_links``, on a ramp
 #: from 0.67 to 0.83), so a proximal phalanx off its edges with the tip in place is not a loss.
 #: More accurate on the dev set than "robust".
+#: "robust-temporal": "robust-limits" with an information-weighted temporal prior around the
+#: prediction (15 deg, 10 mm; free where the features or the silhouette see a direction) that
+#: also judges the starts (``prior.temporal_merit`` 0.1), and after a frame of confidence under
+#: 0.5 the joints the image did not show restarted from the last trusted pose
+#: (``prior.restore_hidden_below``): its loss flag means more, and it holds a thumb from starts a
+#: little off, at some accuracy on fast or occluding motion (benchmarks/README.md, 2026-12-04).
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -37,3 +43,7 @@ PRESETS: dict[str, dict] = {
                       "support": {**_ROBUST["support"], "tip_links": True, "lost": 0.67, "good": 0.83}},
     "coupled": {"prior": {"dip_pip_weight": 4.0}},
 }
+PRESETS["robust-temporal"] = {**PRESETS["robust-limits"],
+                              "prior": {**PRESETS["robust-limits"]["prior"], "temporal_sigma_deg": 15.0,
+                                        "temporal_sigma_mm": 10.0, "information_ratio": 1.0, "temporal_merit": 0.1,
+                                        "restore_hidden_below": 0.5}}
