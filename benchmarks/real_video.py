@@ -16,7 +16,8 @@ fit shared by the runs). Runs, each from frame 0's landmark pose:
   (``image.score.foreground = "sequence"``: the video's camera is still); ``rc<W>``: ``r`` +
   ``--fuse-landmarks W``, for the first weight;
 - ``l``: ``r`` with the robust-limits preset instead of robust; ``lc<W>``: ``l``
-  + ``--fuse-landmarks W``, for the first weight.
+  + ``--fuse-landmarks W``, for the first weight;
+- ``t``, ``tc<W>``: ``l``, ``lc<W>`` with the robust-temporal preset instead of robust-limits.
 
 On the fingers: every one of the 21 projected model landmark points (joint centres, fingertips
 on the skin, the wrist) within 15 px of MediaPipe's (``jaxhand.landmarks.landmark_agreement``).
@@ -76,6 +77,10 @@ def runs(weights) -> dict[str, TrackConfig]:
     out["l"] = dataclasses.replace(limits, landmarks=LandmarkConfig())
     if weights:
         out[f"lc{weights[0]:g}"] = dataclasses.replace(limits, landmarks=LandmarkConfig(fuse_weight=weights[0]))
+    temporal = TrackConfig().preset("robust-temporal").merged({"image": {"score": {"foreground": "sequence"}}})
+    out["t"] = dataclasses.replace(temporal, landmarks=LandmarkConfig())
+    if weights:
+        out[f"tc{weights[0]:g}"] = dataclasses.replace(temporal, landmarks=LandmarkConfig(fuse_weight=weights[0]))
     return out
 
 
@@ -83,7 +88,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=621, help="frames of the video to track (default: all 621)")
     ap.add_argument("--weights", default="1,10", help="--fuse-landmarks weights of the c runs")
-    ap.add_argument("--runs", default=None, help="comma-separated subset of a,b,b15,c<W>,c<W>nf,r,rc<W>,l,lc<W>")
+    ap.add_argument("--runs", default=None,
+                    help="comma-separated subset of a,b,b15,c<W>,c<W>nf,r,rc<W>,l,lc<W>,t,tc<W>")
     ap.add_argument("--out", default="/tmp/jaxhand_real_video", help="folder for the runs' outputs")
     ap.add_argument("--merge", action="store_true", help="add the runs to those of an earlier results file")
     args = ap.parse_args()
