@@ -115,18 +115,12 @@ def finger_of_link(model: Model) -> np.ndarray:
 def moved_links(model: Model) -> np.ndarray:
     """(n_q, n_links) bool: whether q entry ``j`` moves link ``l`` (the link's frame is the joint's
     frame or below it); a free or planar base's entries move every link."""
-    parents = model.parents
-    below = np.eye(len(parents), dtype=bool)   # below[f, g]: frame g is f or a descendant of f
-    for g in range(len(parents)):
-        f = parents[g]
-        while f >= 0:
-            below[f, g] = True
-            f = parents[f]
+    below = model.ancestors.T[:, np.asarray(model.link_frame, int)]   # [f, l]: link l's frame is f or below it
     out = np.zeros((model.n_q, model.n_links), bool)
     out[: model.n_base_q] = True
     for f, j in enumerate(model.q_index):
         if j >= model.n_base_q:
-            out[j] = below[f][np.asarray(model.link_frame, int)]
+            out[j] = below[f]
     return out
 
 
