@@ -12,7 +12,8 @@ judge (here). The tracker, once per frame:
 
 - :class:`Capsules`, :func:`capsules_from_model`, :func:`rasterize`: the model's silhouette.
 - :class:`AbstractForeground` with :class:`ThresholdForeground` (dark background, fixed or Otsu),
-  :class:`BackgroundForeground` (a background image or the first frames) and
+  :class:`BackgroundForeground` (a background image or the first frames),
+  :class:`SequenceBackground` (a still camera's background learned while tracking) and
   :class:`SkinForeground` (colour video).
 - :class:`ScoreConfig`, :class:`ImageScore`, :func:`score_frame`: IoU, coverage and chamfer in [0, 1].
 - :class:`SilhouetteTermConfig`, :class:`SilhouetteTerm`, :func:`silhouette_term`: the silhouette
@@ -41,6 +42,8 @@ from ._section import FOREGROUNDS as FOREGROUNDS
 from ._section import ScoreSection as ScoreSection
 from ._section import foreground_for as foreground_for
 from ._section import sequence_foreground as sequence_foreground
+from ._sequence import SequenceBackground as SequenceBackground
+from ._sequence import fill_holes as fill_holes
 from ._silhouette import CameraNumbers as CameraNumbers
 from ._silhouette import Capsules as Capsules
 from ._silhouette import Silhouette as Silhouette
@@ -60,5 +63,6 @@ __all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsule
            "rasterize", "AbstractForeground", "ThresholdForeground", "BackgroundForeground", "SkinForeground",
            "as_grey", "ScoreConfig", "ImageEvidence", "ImageScore", "image_evidence", "model_contour",
            "score_silhouette", "score_frame", "score_poses", "ConfidenceConfig", "frame_confidence", "FOREGROUNDS",
-           "ScoreSection", "foreground_for", "sequence_foreground", "SilhouetteTermConfig", "SilhouetteTerm",
+           "ScoreSection", "foreground_for", "sequence_foreground", "SequenceBackground", "fill_holes",
+           "SilhouetteTermConfig", "SilhouetteTerm",
            "SilhouettePrior", "silhouette_term", "pill_images"]

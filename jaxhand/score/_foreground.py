@@ -19,7 +19,6 @@ cleans the mask with a morphological opening of ``open_px`` (0 for none).
 from __future__ import annotations
 
 import abc
-import dataclasses
 from dataclasses import dataclass, field
 
 import cv2
@@ -119,8 +118,9 @@ class BackgroundForeground(AbstractForeground):
     """Difference from a static background.
 
     Build it with :meth:`from_frames` (median and spread of the first frames, which should show
-    no hand or a moving one), :meth:`from_sequence` (the same over a whole sequence, seeded by the
-    model's silhouette at a known first pose) or :meth:`from_image` (a given background image).
+    no hand or a moving one) or :meth:`from_image` (a given background image). (For a hand that
+    never leaves the view, learn the background while tracking:
+    :class:`~jaxhand.score.SequenceBackground`.)
 
     Attributes:
         background: (H, W) float32 background grey levels.
@@ -128,19 +128,12 @@ class BackgroundForeground(AbstractForeground):
             it was learned from (1.4826 MAD), floored at ``min_noise``.
         k: a pixel is foreground where ``|image - background| > k * noise``.
         open_px: radius of the opening (px).
-        hand: (H, W) bool or None: pixels where the learned background is the hand itself (a part
-            of it that stays put for most frames): there a frame that *matches* the background is
-            foreground, one that differs shows what the hand uncovered.
-        still: (H, W) bool or None: the part of ``hand`` that matches the background in nearly
-            every frame (a palm that never moves): foreground in every frame, whatever covers it.
     """
 
     background: Float[np.ndarray, "H W"] = field(repr=False)
     noise: Float[np.ndarray, "H W"] = field(repr=False)
     k: float = 4.0
     open_px: int = 1
-    hand: Bool[np.ndarray, "H W"] | None = field(default=None, repr=False)
-    still: Bool[np.ndarray, "H W"] | None = field(default=None, repr=False)
 
     @staticmethod
     def from_frames(frames, *, k: float = 4.0, min_noise: float = 3.0, open_px: int = 1) -> BackgroundForeground:
@@ -152,21 +145,6 @@ class BackgroundForeground(AbstractForeground):
         mad = 1.4826 * np.median(np.abs(stack - med), axis=0)
         return BackgroundForeground(background=med, noise=np.maximum(mad, min_noise).astype(np.float32), k=k,
                                     open_px=open_px)
-
-    @staticmethod
-    def from_sequence(frames, hand_mask, *, k: float = 4.0, min_noise: float = 3.0, open_px: int = 1,
-                      still_share: float = 0.9) -> BackgroundForeground:
-        """The median of ``frames`` (N, H, W[, 3]) spread over a sequence, told where it learned the
-        hand itself: where the model's silhouette at the first frame's known pose (``hand_mask``,
-        (H, W) bool, drawn for ``frames[0]``) agrees with the median (``hand``), and of that, where
-        at least ``still_share`` of the frames agree too (``still``)."""
-        fg = BackgroundForeground.from_frames(frames, k=k, min_noise=min_noise, open_px=open_px)
-        hand = np.asarray(hand_mask, bool)
-        if hand.shape != fg.background.shape:
-            raise InputError(f"hand_mask: expected shape {fg.background.shape} (the frames'), got {hand.shape}")
-        agree = np.mean([fg._differs(f) == 0 for f in frames], axis=0)   # share of frames matching the median
-        hand = hand & (fg._differs(frames[0]) == 0)
-        return dataclasses.replace(fg, hand=hand, still=hand & (agree >= still_share))
 
     def _differs(self, image) -> np.ndarray:
         """(H, W) uint8, 1 where ``image`` differs from the background by more than ``k`` noise levels."""
@@ -182,10 +160,7 @@ class BackgroundForeground(AbstractForeground):
         return BackgroundForeground(background=bg, noise=np.full_like(bg, difference), k=1.0, open_px=open_px)
 
     def mask(self, image) -> np.ndarray:
-        diff = _open(self._differs(image).view(bool), self.open_px)
-        if self.hand is None:
-            return diff
-        return np.where(self.hand, ~diff, diff) | self.still
+        return _open(self._differs(image).view(bool), self.open_px)
 
 
 # Generic skin chrominance in YCrCb (OpenCV's 8-bit scaling): a mean and covariance broad enough for

@@ -17,6 +17,7 @@ from ._foreground import (
     ThresholdForeground,
 )
 from ._score import ScoreConfig
+from ._sequence import SequenceBackground
 from ._silhouette import capsules_from_model, rasterize
 
 __all__ = ["FOREGROUNDS", "ScoreSection", "foreground_for", "sequence_foreground"]
@@ -37,10 +38,11 @@ class ScoreSection:
 
     Attributes:
         foreground: "auto" (skin on colour, a threshold on grey), "threshold", "background"
-            (needs ``background_image``), "sequence" (a static camera over any background: the
-            median of ``sequence_frames`` frames spread over the sequence, the hand's still parts
-            seeded by the model at the first pose; :meth:`BackgroundForeground.from_sequence`,
-            built by the front end from the frames :func:`jaxhand.track_sequence` passes it), "skin",
+            (needs ``background_image``), "sequence" (a still camera over any background: a
+            :class:`SequenceBackground` learned from ``sequence_frames`` frames spread over the
+            sequence, anchored at the model's silhouette at the first pose, and from the tracked
+            poses as tracking goes; built by the front end from the frames
+            :func:`jaxhand.track_sequence` passes it), "skin",
             or "none" (the default): no image score, the
             tracker judges frames by their residuals alone. Off by default: a frame lost by the
             score is held, and without recovery that costs jaxhand's own experiments more than the
@@ -116,9 +118,8 @@ def foreground_for(section: ScoreSection, image) -> AbstractForeground:
     raise InputError("score.foreground is 'none': no foreground model")
 
 
-def sequence_foreground(model, camera, q0, frames) -> BackgroundForeground:
-    """The "sequence" foreground of one camera: :meth:`BackgroundForeground.from_sequence` of
-    ``frames`` seeded by the model's silhouette (pills and occluders) at the first frame's pose
-    ``q0``."""
+def sequence_foreground(model, camera, q0, frames) -> SequenceBackground:
+    """The "sequence" foreground of one camera: a :class:`SequenceBackground` of ``frames``
+    seeded by the model's silhouette (pills and occluders) at the first frame's pose ``q0``."""
     mask = rasterize(capsules_from_model(model, np.asarray(q0, float)), camera).mask
-    return BackgroundForeground.from_sequence(frames, mask)
+    return SequenceBackground(frames, mask)

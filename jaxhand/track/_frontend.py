@@ -68,9 +68,10 @@ class AbstractFrontEnd(abc.ABC):
     """The interface between the tracker and whatever measures features.
 
     Subclasses implement :meth:`extract`; :meth:`refresh` (updating the state at the solved
-    pose) defaults to returning the state unchanged, :meth:`score` (the global image score of
-    candidate poses) to None. :attr:`reextracts` says whether searching
-    again around the solved pose can find better features (:attr:`TrackConfig.reextract`).
+    pose) defaults to returning the state unchanged, :meth:`observe` (learning from the frame's
+    estimate) to nothing, :meth:`score` (the global image score of candidate poses) to None.
+    :attr:`reextracts` says whether searching again around the solved pose can find better
+    features (:attr:`TrackConfig.reextract`).
     """
 
     #: Whether a second extraction around the solved pose of the same frame can help.
@@ -85,6 +86,10 @@ class AbstractFrontEnd(abc.ABC):
     def refresh(self, images: Sequence[np.ndarray | None], q: np.ndarray | None, state: Any) -> Any:
         """The front end's state updated at the solved pose ``q`` (after a frame not lost)."""
         return state
+
+    def observe(self, images: Sequence[np.ndarray | None], q: np.ndarray) -> None:
+        """Learn from the frame's reported estimate ``q`` (after a frame not lost): nothing by default."""
+        return None
 
     def score(self, images: Sequence[np.ndarray | None], qs: np.ndarray, state: Any) -> np.ndarray | None:
         """The global image score in [0, 1] (1: the model's silhouette matches the image) of each
@@ -168,6 +173,16 @@ class ImageFrontEnd(AbstractFrontEnd):
         if self.config.method not in TEMPLATE_SEARCHES:
             return state
         return refresh_templates(images, self.model, self.cameras, q, self.config, state)
+
+    def observe(self, images, q) -> None:
+        """The "sequence" foregrounds learn the background where the model at ``q`` leaves each
+        camera's image free (:meth:`jaxhand.score.SequenceBackground.observe`)."""
+        if self._sequence_fg is None:
+            return
+        caps = capsules_from_model_batch(self.model, np.asarray(q, float).reshape(1, -1))[0]
+        for fg, cam, image in zip(self._sequence_fg, self._cameras(), images):
+            if image is not None:
+                fg.observe(image, rasterize(caps, cam).mask)
 
     @property
     def scores(self) -> bool:

@@ -351,6 +351,8 @@ class Tracker:
         if not lost and self.config.refresh_templates:
             fe_state = self.frontend.refresh(images, q_meas, fe_state)
             timings["templates"] = time.perf_counter() - t3
+        if not lost:
+            self.frontend.observe(images, filtered)
         diag = extracted.diagnostics
         timings.update({f"features.{k}": v for k, v in diag.timings_s.items()})
         report = StepReport(frame=frame, time_s=time_s, q_pred=np.asarray(q_pred_host), q_solved=q_meas,

@@ -1,0 +1,157 @@
+"""A still camera's background, learned from the sequence and from the tracked poses (the
+"sequence" foreground; issue 13 item 3).
+
+A pixel's background grey is known in one of two ways, the first preferred:
+
+- **seen**: the mean over the frames so far where the tracked model, grown by ``margin_px``, left
+  the pixel free (:meth:`SequenceBackground.observe`, after each frame);
+- **anchored mode**: the most frequent grey over frames spread across the sequence, among the
+  frames that can show background there: every frame outside the hand at the first, known pose;
+  inside it, only the frames that differ from the first (the hand has moved away). A mode the tracked model has been seen covering (the pixel matched it
+  inside the model's silhouette on ``min_covered`` frames) was a hand part that stayed put, a
+  fist over the fingers' first place, and is dropped.
+
+A pixel known neither way (the palm that never moves) is foreground. A pixel differs from its
+background where its grey does by ``k`` noise levels, or where the mean squared difference over
+its 3x3 patch exceeds ``patch_level`` squared noise levels (shrunk by a pixel, so the patch does
+not grow the outline): a finger whose grey lies within a few noise levels of the clutter behind
+it still differs over a patch. Holes under ``fill_px`` pixels are filled: the silhouette term
+reads every outline, and a hole's outline inside a finger would pull the model's onto it.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from jaxtyping import Bool, Float
+
+from .._errors import InputError
+from ._foreground import AbstractForeground, _open, as_grey
+
+__all__ = ["SequenceBackground", "fill_holes"]
+
+_AGREE = 3.0   # noise levels within which two greys count as the same (anchoring, covered modes)
+
+
+def _disc(radius: int) -> np.ndarray:
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+
+
+def fill_holes(mask: Bool[np.ndarray, "H W"], max_px: int) -> Bool[np.ndarray, "H W"]:
+    """``mask`` with every 4-connected hole of fewer than ``max_px`` pixels filled (a background
+    region touching the image border is never a hole)."""
+    if max_px <= 0:
+        return mask
+    n, labels, stats, _ = cv2.connectedComponentsWithStats((~mask).astype(np.uint8), connectivity=4)
+    h, w = mask.shape
+    x, y, bw, bh, area = (stats[:, i] for i in range(5))
+    inner = (x > 0) & (y > 0) & (x + bw < w) & (y + bh < h)
+    small = inner & (area < max_px)
+    small[0] = False   # label 0 is the mask itself
+    return mask | small[labels]
+
+
+def _noise(stack: np.ndarray, hand: np.ndarray, min_noise: float) -> float:
+    """The frames' noise level (grey levels): the robust spread of frame-to-frame differences
+    away from the hand, over sqrt(2)."""
+    away = ~(cv2.dilate(hand.astype(np.uint8), _disc(3)) > 0)
+    if len(stack) < 2 or not away.any():
+        return float(min_noise)
+    d = np.abs(np.diff(stack[:, away], axis=0))
+    return max(float(1.4826 * np.median(d) / np.sqrt(2)), min_noise)
+
+
+def _anchored_mode(stack: np.ndarray, core: np.ndarray, noise: float, min_frames: int
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel's most frequent grey among the frames that can show background there (all of
+    them outside ``core``; inside, those differing from the first frame), refined to the mean of
+    those near it; and where at least ``min_frames`` frames support it."""
+    candidate = np.where(core, np.abs(stack - stack[0]) > _AGREE * noise, True)
+    width = max(4.0, noise)
+    n_bins = int(256 / width) + 1
+    bins = np.minimum((stack / width).astype(np.intp), n_bins - 1)
+    counts = np.zeros((n_bins, stack[0].size), np.uint16)
+    pixels = np.arange(stack[0].size)
+    for b, c in zip(bins.reshape(len(stack), -1), candidate.reshape(len(stack), -1)):
+        np.add.at(counts, (b[c], pixels[c]), 1)
+    smooth = counts.astype(np.int32)
+    smooth[1:] += counts[:-1]
+    smooth[:-1] += counts[1:]
+    centre = ((np.argmax(smooth, 0) + 0.5) * width).reshape(stack[0].shape)
+    near = candidate & (np.abs(stack - centre) <= 2 * noise + width)
+    support = near.sum(0)
+    mode = np.where(support > 0, np.where(near, stack, 0).sum(0) / np.maximum(support, 1), centre)
+    return mode.astype(np.float32), support >= min_frames
+
+
+class SequenceBackground(AbstractForeground):
+    """The background of a still camera, learned from frames spread over the sequence and, as
+    tracking goes, from where the tracked model leaves the image free (see the module text).
+    Mutable: :meth:`observe` adds a tracked frame.
+
+    Attributes:
+        noise: the frames' noise level (grey levels), floored at ``min_noise``.
+        mode: (H, W) the anchored mode of each pixel (grey levels).
+        k, patch_level, fill_px, margin_px, open_px, min_covered: see :meth:`__init__`.
+    """
+
+    def __init__(self, frames, hand_mask, *, k: float = 4.0, patch_level: float = 3.0, fill_px: int = 100,
+                 margin_px: int = 3, rim_px: int = 0, min_frames: int = 5, min_covered: int = 2,
+                 min_noise: float = 3.0, open_px: int = 1):
+        """``frames``: (N, H, W[, 3]) frames spread over the sequence, the first frame first;
+        ``hand_mask``: (H, W) bool, the model's silhouette at the first frame's known pose;
+        ``k``: per-pixel difference (noise levels); ``patch_level``: 3x3 mean squared difference
+        (squared noise levels; 0: off); ``fill_px``: largest hole filled (px; 0: none);
+        ``margin_px``: how far the tracked silhouette is grown before its outside counts as seen
+        background; ``rim_px``: how far inside the first silhouette's outline the first frame
+        starts to count as hand (0: from the outline; a static part's outline then follows the
+        model's); ``min_frames``: frames a mode needs; ``min_covered``: frames a mode may
+        match under the tracked model before it is dropped."""
+        stack = np.stack([as_grey(f, f"frames[{i}]") for i, f in enumerate(frames)]).astype(np.float32)
+        if len(stack) == 0:
+            raise InputError("frames: need at least one frame")
+        hand = np.asarray(hand_mask, bool)
+        if hand.shape != stack.shape[1:]:
+            raise InputError(f"hand_mask: expected shape {stack.shape[1:]} (the frames'), got {hand.shape}")
+        self.k, self.patch_level, self.fill_px = float(k), float(patch_level), int(fill_px)
+        self.margin_px, self.open_px, self.min_covered = int(margin_px), int(open_px), int(min_covered)
+        self.noise = _noise(stack, hand, min_noise)
+        self._core = cv2.erode(hand.astype(np.uint8), _disc(rim_px)) > 0 if rim_px > 0 else hand
+        self.mode, self._mode_known = _anchored_mode(stack, self._core, self.noise, min_frames)
+        self._seen_sum = np.zeros(hand.shape, np.float64)
+        self._seen = np.zeros(hand.shape, np.int32)
+        self._covered = np.zeros(hand.shape, np.int32)
+
+    def observe(self, image, silhouette: Bool[np.ndarray, "H W"]) -> None:
+        """Learn from a tracked frame: ``silhouette`` is the model's mask at the frame's estimate."""
+        grey = self._grey(image).astype(np.float32)
+        sil = np.asarray(silhouette, bool)
+        if sil.shape != grey.shape:
+            raise InputError(f"silhouette: expected shape {grey.shape} (the frames'), got {sil.shape}")
+        free = ~(cv2.dilate(sil.astype(np.uint8), _disc(self.margin_px)) > 0)
+        self._seen_sum += np.where(free, grey, 0.0)
+        self._seen += free
+        inside = cv2.erode(sil.astype(np.uint8), _disc(1)) > 0
+        self._covered += inside & self._core & (np.abs(grey - self.mode) <= _AGREE * self.noise)
+
+    def background(self) -> tuple[Float[np.ndarray, "H W"], Bool[np.ndarray, "H W"]]:
+        """The background greys so far and where they are known."""
+        seen = self._seen > 0
+        background = np.where(seen, self._seen_sum / np.maximum(self._seen, 1), self.mode).astype(np.float32)
+        return background, seen | (self._mode_known & (self._covered < self.min_covered))
+
+    def mask(self, image) -> np.ndarray:
+        grey = self._grey(image).astype(np.float32)
+        background, known = self.background()
+        z2 = ((grey - background) / self.noise) ** 2
+        differs = z2 > self.k ** 2
+        if self.patch_level > 0:
+            patch = (cv2.boxFilter(z2, -1, (3, 3)) > self.patch_level).astype(np.uint8)
+            differs |= cv2.erode(patch, _disc(1)) > 0
+        return _open(fill_holes(differs | ~known, self.fill_px), self.open_px)
+
+    def _grey(self, image) -> np.ndarray:
+        grey = as_grey(image)
+        if grey.shape != self.mode.shape:
+            raise InputError(f"image: expected shape {self.mode.shape} (the background's), got {grey.shape}")
+        return grey
