@@ -150,7 +150,7 @@ def test_sequence_background_drops_a_mode_the_tracked_model_covers():
     it is foreground again (but for its outline), and where the tracked model left the image free the background is
     what was seen."""
     frames, hands, _, fist = _moving_finger_frames(cover_from=3)
-    model = SequenceBackground(frames, hands[0])
+    model = SequenceBackground(frames, hands[0], margin_px=1)   # the fist is 5 px wide: covered 1 px in
     assert model.mask(frames[5])[fist].mean() < 0.1
     for k in (3, 4):
         model.observe(frames[k], hands[k])

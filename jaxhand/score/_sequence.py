@@ -7,15 +7,18 @@ A pixel's background grey is known in one of two ways, the first preferred:
   the pixel free (:meth:`SequenceBackground.observe`, after each frame);
 - **anchored mode**: the most frequent grey over frames spread across the sequence, among the
   frames that can show background there: every frame outside the hand at the first, known pose;
-  inside it, only the frames that differ from the first (the hand has moved away). A mode the tracked model has been seen covering (the pixel matched it
-  inside the model's silhouette on ``min_covered`` frames) was a hand part that stayed put, a
-  fist over the fingers' first place, and is dropped.
+  inside it, only the frames that differ from the first (the hand has moved away), a grey
+  counting more the nearer it lies to the background around the hand. A mode the tracked model
+  has been seen covering (the pixel matched it deep inside the model's silhouette on
+  ``min_covered`` frames) was a hand part that stayed put, a fist over the fingers' first place,
+  and is dropped.
 
 A pixel known neither way (the palm that never moves) is foreground. A pixel differs from its
 background where its grey does by ``k`` noise levels, or where the mean squared difference over
-its 3x3 patch exceeds ``patch_level`` squared noise levels (shrunk by a pixel, so the patch does
-not grow the outline): a finger whose grey lies within a few noise levels of the clutter behind
-it still differs over a patch. Holes under ``fill_px`` pixels are filled: the silhouette term
+its 3x3 patch exceeds ``patch_level`` squared noise levels and its own exceeds one (the patch
+mask shrunk by a pixel, so it neither grows the outline nor closes a gap between fingers): a
+finger whose grey lies within a few noise levels of the clutter behind it still differs over a
+patch. Holes under ``fill_px`` pixels are filled: the silhouette term
 reads every outline, and a hole's outline inside a finger would pull the model's onto it.
 """
 
@@ -31,6 +34,7 @@ from ._foreground import AbstractForeground, _open, as_grey
 __all__ = ["SequenceBackground", "fill_holes"]
 
 _AGREE = 3.0   # noise levels within which two greys count as the same (anchoring, covered modes)
+_GUESS_GREY = 32.0   # how near (grey levels) a mode must lie to the inpainted background to count double
 
 
 def _disc(radius: int) -> np.ndarray:
@@ -65,7 +69,10 @@ def _anchored_mode(stack: np.ndarray, core: np.ndarray, noise: float, min_frames
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Each pixel's most frequent grey among the frames that can show background there (all of
     them outside ``core``; inside, those differing from the first frame), refined to the mean of
-    those near it; and where at least ``min_frames`` frames support it."""
+    those near it; and where at least ``min_frames`` frames support it. Inside ``core`` a grey
+    counts up to twice as much the nearer it lies to the background outside, inpainted across
+    the hand: of a fingertip that rested where the finger started and the background seen as
+    often, the background wins."""
     candidate = np.where(core, np.abs(stack - stack[0]) > _AGREE * noise, True)
     width = max(4.0, noise)
     n_bins = int(256 / width) + 1
@@ -78,6 +85,13 @@ def _anchored_mode(stack: np.ndarray, core: np.ndarray, noise: float, min_frames
     smooth[1:] += counts[:-1]
     smooth[:-1] += counts[1:]
     centre = ((np.argmax(smooth, 0) + 0.5) * width).reshape(stack[0].shape)
+    if core.any():
+        guess = cv2.inpaint(np.clip(centre, 0, 255).astype(np.uint8), core.astype(np.uint8), 5, cv2.INPAINT_TELEA)
+        levels = (np.arange(n_bins) + 0.5) * width
+        near_guess = np.exp(-0.5 * ((levels[:, None] - guess.ravel()[None].astype(float)) / _GUESS_GREY) ** 2)
+        inside = core.ravel()
+        weighted = smooth[:, inside] * (1.0 + near_guess[:, inside])
+        centre.ravel()[inside] = (np.argmax(weighted, 0) + 0.5) * width
     near = candidate & (np.abs(stack - centre) <= 2 * noise + width)
     support = near.sum(0)
     mode = np.where(support > 0, np.where(near, stack, 0).sum(0) / np.maximum(support, 1), centre)
@@ -131,7 +145,7 @@ class SequenceBackground(AbstractForeground):
         free = ~(cv2.dilate(sil.astype(np.uint8), _disc(self.margin_px)) > 0)
         self._seen_sum += np.where(free, grey, 0.0)
         self._seen += free
-        inside = cv2.erode(sil.astype(np.uint8), _disc(1)) > 0
+        inside = cv2.erode(sil.astype(np.uint8), _disc(self.margin_px)) > 0
         self._covered += inside & self._core & (np.abs(grey - self.mode) <= _AGREE * self.noise)
 
     def background(self) -> tuple[Float[np.ndarray, "H W"], Bool[np.ndarray, "H W"]]:
@@ -147,7 +161,7 @@ class SequenceBackground(AbstractForeground):
         differs = z2 > self.k ** 2
         if self.patch_level > 0:
             patch = (cv2.boxFilter(z2, -1, (3, 3)) > self.patch_level).astype(np.uint8)
-            differs |= cv2.erode(patch, _disc(1)) > 0
+            differs |= (cv2.erode(patch, _disc(1)) > 0) & (z2 > 1.0)   # a gap between fingers stays open
         return _open(fill_holes(differs | ~known, self.fill_px), self.open_px)
 
     def _grey(self, image) -> np.ndarray:
