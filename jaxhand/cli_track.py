@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ._errors import InputError
+from .score import FOREGROUNDS
 from .track import PRESETS, TrackConfig, load_track_config
 
 __all__ = ["register", "run_demo", "print_summary", "track_config_from_args"]
@@ -64,6 +65,12 @@ def register(sub) -> None:
                    help="estimate the phalanx widths from the images with this gain per frame (thesis app. E; "
                         "0.05-0.2 when the model's radii may be off; 0: keep the model's; "
                         f"default: {defaults.image.width_gain})")
+    p.add_argument("--foreground", choices=FOREGROUNDS,
+                   help="which pixels show the hand, for the silhouette term and the image score: 'sequence' "
+                        "learns a still camera's background from the sequence and the tracked poses (cluttered "
+                        "backgrounds), 'threshold' a dark background, 'skin' colour video, 'background' needs "
+                        "[image.score] background_image in --config (default: the settings', "
+                        f"{defaults.image.score.foreground}; 'auto' where a preset's silhouette term needs one)")
     p.add_argument("--fps", type=float, default=25.0, help="frame rate of image folders")
     p.add_argument("--truth", help="ground truth: a 'jaxhand synth' ground_truth.json or its folder, or a dev-set "
                                    "truth.json or its folder (data/mujoco/README.md; default: the input folder's)")
@@ -219,6 +226,8 @@ def track_config_from_args(args) -> TrackConfig:
             (changes.setdefault(section, {}) if section else changes)[key] = value
     if args.no_filter:
         changes.setdefault("filter", {})["enabled"] = False
+    if args.foreground is not None:
+        changes.setdefault("image", {})["score"] = {"foreground": args.foreground}
     if args.no_restart:
         changes.setdefault("landmarks", {})["restart"] = False
     if args.reacquire is not None:

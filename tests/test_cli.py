@@ -85,6 +85,10 @@ def test_track_flags_override_the_config_file_and_help_shows_the_defaults(tmp_pa
     config = track_config_from_args(args)
     assert (config.solver, config.filter.theta, config.filter.enabled) == ("lm", 0.5, False)   # the file's
     assert config.fit.max_steps == 5 and config.image.reacquire_deg == (15.0, 30.0)             # the flags'
+    config = track_config_from_args(parse(["track", "x", "--out", "o", "--preset", "robust-temporal",
+                                           "--foreground", "sequence", "--method", "gaussian"]))
+    assert config.image.score.foreground == "sequence" and config.image.method == "gaussian"
+    assert config.image.silhouette_term.weight == 0.5   # the preset's, kept
     (tmp_path / "bad.toml").write_text("format_version = 1\n[filter]\ntheta_rat_hz = 10\n")
     assert main(["track", "x", "--out", "o", "--config", str(tmp_path / "bad.toml"), "--model", "index",
                  "--camera", "c.json"]) == 2
