@@ -71,9 +71,13 @@ SETTINGS = {
     "robust-limits-nofinger": {**PRESETS["robust-limits"],
                                "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "finger_level": 0.0},
                                "loss": {**PRESETS["robust-limits"]["loss"], "valid_share_good": 1.0}},
-    # ... with the foreground learned from the sequence (its median, seeded at the first pose)
+    # ... with the foreground learned from a still camera's sequence and the tracked poses
+    # (jaxhand.score.SequenceBackground since 2026-12-05; before, the sequence's median)
     "robust+sequence": {**PRESETS["robust"], "image": {**PRESETS["robust"]["image"],
                                                        "score": {"foreground": "sequence"}}},
+    # robust-temporal with that foreground (`jaxhand track --preset robust-temporal --foreground sequence`)
+    "robust-temporal+sequence": {**PRESETS["robust-temporal"],
+                                 "image": {**PRESETS["robust-temporal"]["image"], "score": {"foreground": "sequence"}}},
     # a fixed-sigma temporal prior around the g-h-k prediction, the g-h-k update reported
     "temporal5+dip": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "dip_pip_weight": 10.0}},
     # the solve with the prior reported (the filter only predicts)

@@ -110,3 +110,18 @@ def test_the_interface_is_abstract_with_a_default_refresh():
             raise NotImplementedError
 
     assert Still().refresh([None], None, "s") == "s" and Still.reextracts
+    assert Still().observe([None], np.zeros(3)) is None   # learns nothing by default
+
+
+def test_the_tracker_hands_each_frames_estimate_to_observe():
+    """A learning front end (the "sequence" foreground) sees every frame's reported pose."""
+    seq = make_preset("two_finger_occlusion", frames=6)
+
+    class Recording(ExactFrontEnd):
+        def observe(self, images, q):
+            self.seen.append(np.array(q))
+
+    fe = Recording(seq.model, seq.cameras, seq.q, noise_px=0.0)
+    fe.seen = []
+    qs = _track(seq, [[None]] * 4, fe, TrackConfig())
+    np.testing.assert_array_equal(np.stack(fe.seen), qs)
