@@ -207,6 +207,10 @@ def main(argv=None) -> None:
     args = p.parse_args(argv)
     if args.seeds < 1 or (args.seeds > 1 and not args.start_deg > 0):
         p.error(f"--seeds {args.seeds}: need 1, or more than 1 with --start-deg > 0 (else the runs are the same)")
+    unknown = [s for s in args.settings.split(",") if s not in SETTINGS]
+    if unknown:
+        p.error(f"--settings: unknown {', '.join(unknown)}; choose from {', '.join(SETTINGS)} "
+                "(the preset robust-temporal is robust-limits+temporal+restore)")
     apply_runtime(args)
     rows, records = [], []
     for name in args.only.split(","):
