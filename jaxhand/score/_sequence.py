@@ -77,21 +77,20 @@ def _anchored_mode(stack: np.ndarray, core: np.ndarray, noise: float, min_frames
     width = max(4.0, noise)
     n_bins = int(256 / width) + 1
     bins = np.minimum((stack / width).astype(np.intp), n_bins - 1)
-    counts = np.zeros((n_bins, stack[0].size), np.uint16)
+    counts = np.zeros((n_bins, stack[0].size), np.uint16 if 3 * len(stack) < 2 ** 16 else np.uint32)
     pixels = np.arange(stack[0].size)
     for b, c in zip(bins.reshape(len(stack), -1), candidate.reshape(len(stack), -1)):
         np.add.at(counts, (b[c], pixels[c]), 1)
-    smooth = counts.astype(np.int32)
+    smooth = counts.copy()   # each bin with its two neighbours (at most 3 N counts)
     smooth[1:] += counts[:-1]
     smooth[:-1] += counts[1:]
     centre = ((np.argmax(smooth, 0) + 0.5) * width).reshape(stack[0].shape)
     if core.any():
         guess = cv2.inpaint(np.clip(centre, 0, 255).astype(np.uint8), core.astype(np.uint8), 5, cv2.INPAINT_TELEA)
-        levels = (np.arange(n_bins) + 0.5) * width
-        near_guess = np.exp(-0.5 * ((levels[:, None] - guess.ravel()[None].astype(float)) / _GUESS_GREY) ** 2)
-        inside = core.ravel()
-        weighted = smooth[:, inside] * (1.0 + near_guess[:, inside])
-        centre.ravel()[inside] = (np.argmax(weighted, 0) + 0.5) * width
+        levels = ((np.arange(n_bins) + 0.5) * width).astype(np.float32)
+        near_guess = np.exp(-0.5 * ((levels[:, None] - guess[core][None].astype(np.float32)) / _GUESS_GREY) ** 2)
+        weighted = smooth[:, core.ravel()] * (1.0 + near_guess)
+        centre[core] = (np.argmax(weighted, 0) + 0.5) * width
     near = candidate & (np.abs(stack - centre) <= 2 * noise + width)
     support = near.sum(0)
     mode = np.where(support > 0, np.where(near, stack, 0).sum(0) / np.maximum(support, 1), centre)
