@@ -13,9 +13,7 @@ A pixel's background grey is known in one of two ways, the first preferred:
   ``min_covered`` frames) was a hand part that stayed put, a fist over the fingers' first place,
   and is dropped.
 
-A pixel known neither way is foreground, and so is one inside the first silhouette that shows the
-first frame's grey on at least half of the frames (the hand sits there: a palm that hardly
-moves, whose small moves would otherwise make its own greys the mode). A pixel differs from its
+A pixel known neither way (the palm that never moves) is foreground. A pixel differs from its
 background where its grey does by ``k`` noise levels, or where the mean squared difference over
 its 3x3 patch exceeds ``patch_level`` squared noise levels and its own exceeds one (the patch
 mask shrunk by a pixel, so it neither grows the outline nor closes a gap between fingers): a
@@ -71,8 +69,7 @@ def _anchored_mode(stack: np.ndarray, core: np.ndarray, noise: float, min_frames
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Each pixel's most frequent grey among the frames that can show background there (all of
     them outside ``core``; inside, those differing from the first frame), refined to the mean of
-    those near it; and where at least ``min_frames`` frames support it and, inside ``core``, the
-    first frame's grey is not the usual one (the hand sits there). Inside ``core`` a grey
+    those near it; and where at least ``min_frames`` frames support it. Inside ``core`` a grey
     counts up to twice as much the nearer it lies to the background outside, inpainted across
     the hand: of a fingertip that rested where the finger started and the background seen as
     often, the background wins."""
@@ -97,8 +94,7 @@ def _anchored_mode(stack: np.ndarray, core: np.ndarray, noise: float, min_frames
     near = candidate & (np.abs(stack - centre) <= 2 * noise + width)
     support = near.sum(0)
     mode = np.where(support > 0, np.where(near, stack, 0).sum(0) / np.maximum(support, 1), centre)
-    still = core & (np.mean(np.abs(stack - stack[0]) <= _AGREE * noise, axis=0) >= 0.5)   # the hand sits there
-    return mode.astype(np.float32), (support >= min_frames) & ~still
+    return mode.astype(np.float32), support >= min_frames
 
 
 class SequenceBackground(AbstractForeground):
