@@ -47,11 +47,15 @@ def as_grey(image, where: str = "image") -> UInt8[np.ndarray, "H W"]:
     return cv2.cvtColor(a, cv2.COLOR_BGR2GRAY) if a.ndim == 3 else a
 
 
+def _disc(radius: int) -> np.ndarray:
+    """The elliptic structuring element of ``radius`` px."""
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+
+
 def _open(mask: np.ndarray, open_px: int) -> np.ndarray:
     if open_px <= 0:
         return mask
-    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * open_px + 1, 2 * open_px + 1))
-    return cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, k).astype(bool)
+    return cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, _disc(open_px)).astype(bool)
 
 
 class AbstractForeground(abc.ABC):

@@ -29,16 +29,12 @@ import numpy as np
 from jaxtyping import Bool, Float
 
 from .._errors import InputError
-from ._foreground import AbstractForeground, _open, as_grey
+from ._foreground import AbstractForeground, _disc, _open, as_grey
 
 __all__ = ["SequenceBackground", "fill_holes"]
 
 _AGREE = 3.0   # noise levels within which two greys count as the same (anchoring, covered modes)
 _GUESS_GREY = 32.0   # how near (grey levels) a mode must lie to the inpainted background to count double
-
-
-def _disc(radius: int) -> np.ndarray:
-    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
 
 
 def fill_holes(mask: Bool[np.ndarray, "H W"], max_px: int) -> Bool[np.ndarray, "H W"]:
