@@ -19,6 +19,12 @@ fit shared by the runs). Runs, each from frame 0's landmark pose:
   + ``--fuse-landmarks W``, for the first weight;
 - ``t``, ``tc<W>``: ``l``, ``lc<W>`` with the robust-temporal preset instead of robust-limits.
 
+The runs with the learned foreground (``r``, ``l``, ``t`` and their fused runs) track the calibrated
+model with a palm and a forearm (:func:`jaxhand.model.add_palm`): the learned foreground sees them.
+
+``--scale S`` tracks the video resized by S (the camera with it, :func:`jaxhand.camera.scale_camera`, and
+the landmark pixels the fused runs use); the agreement is measured at the video's own size either way.
+
 On the fingers: every one of the 21 projected model landmark points (joint centres, fingertips
 on the skin, the wrist) within 15 px of MediaPipe's (``jaxhand.landmarks.landmark_agreement``).
 Writes ``benchmarks/results/real_video.json``; the runs' folders (overlay videos) go to ``--out``.
@@ -37,10 +43,11 @@ from pathlib import Path
 import numpy as np
 from _common import REPO, RESULTS, environment, format_table, load_average, write_json
 
+from jaxhand.camera import scale_camera
 from jaxhand.io import open_frames
 from jaxhand.landmarks import LandmarkPoses, camera_from_fov, fit_landmark_sequence, landmark_agreement, load_landmarks
 from jaxhand.landmarks import projected_landmarks as project
-from jaxhand.model import get_model
+from jaxhand.model import add_palm, get_model
 from jaxhand.track import FilterConfig, LandmarkConfig, TrackConfig, track_sequence
 
 VIDEO = REPO / "data" / "real" / "human_hand_video.mp4"
@@ -91,6 +98,9 @@ def main() -> None:
     ap.add_argument("--runs", default=None,
                     help="comma-separated subset of a,b,b15,c<W>,c<W>nf,r,rc<W>,l,lc<W>,t,tc<W>")
     ap.add_argument("--out", default="/tmp/jaxhand_real_video", help="folder for the runs' outputs")
+    ap.add_argument("--forearm-mm", type=float, default=250.0,
+                    help="forearm length of the palm model of the learned-foreground runs (default 250)")
+    ap.add_argument("--scale", type=float, default=1.0, help="track the video resized by this factor (default 1)")
     ap.add_argument("--merge", action="store_true", help="add the runs to those of an earlier results file")
     args = ap.parse_args()
     weights = [float(w) for w in args.weights.split(",") if w]
@@ -110,14 +120,22 @@ def main() -> None:
     results["landmark_fit"]["agreement"] = alone
     print(f"the landmark poses alone: on the fingers in {alone['frames_on_fingers']}/{alone['frames_compared']} frames")
     rows = []
+    palm_model = add_palm(model, forearm_mm=args.forearm_mm)
+    cam_s = scale_camera(camera, args.scale)
+    s_px = np.array(cam_s.size) / np.array(camera.size)
+    poses_s = dataclasses.replace(poses, px=(poses.px + 0.5) * s_px - 0.5)
     for name, config in todo.items():
         lm = config.landmarks
-        sources = open_frames([VIDEO], fps=30.0, sizes=[camera.size])
-        s = track_sequence(model, (camera,), sources, None, Path(args.out) / name, config=config,
-                           landmarks=poses, max_frames=args.frames, overwrite=True)
-        ag = s["landmarks"]["agreement"]
+        palm = config.image.score.foreground == "sequence"
+        sources = open_frames([VIDEO], fps=30.0, sizes=[cam_s.size], scale=args.scale)
+        s = track_sequence(palm_model if palm else model, (cam_s,), sources, None, Path(args.out) / name, config=config,
+                           landmarks=poses_s, max_frames=args.frames, overwrite=True)
+        done = np.load(Path(args.out) / name / "results.npz")
+        ag = landmark_agreement(model, camera, poses, done["frame"], done["q"])
         results["runs"][name] = {"config": {"restart": lm.restart, "restart_px": lm.restart_px,
-                                            "fuse_weight": lm.fuse_weight, "filter": config.filter.enabled},
+                                            "fuse_weight": lm.fuse_weight, "filter": config.filter.enabled,
+                                            "palm": palm and f"forearm {args.forearm_mm:g} mm",
+                                            "scale": args.scale},
                                  "load_average": {"start": load0, "end": load_average()},
                                  "agreement": ag, "restarts": s["landmarks"]["restarts"],
                                  "restart_frames": s["landmarks"]["restart_frames"], "lost_frames": s["lost_frames"],

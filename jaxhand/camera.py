@@ -26,7 +26,8 @@ from jaxtyping import Array, ArrayLike, Float
 
 from ._errors import CameraError
 
-__all__ = ["Orthographic", "Perspective", "Camera", "as_rig", "load_camera", "save_camera", "look_at_rotation"]
+__all__ = ["Orthographic", "Perspective", "Camera", "as_rig", "load_camera", "save_camera", "look_at_rotation",
+           "scale_camera", "scaled_size"]
 
 # Points closer to a perspective camera than this (mm) are clamped so projection stays finite.
 _MIN_DEPTH_MM = 1e-6
@@ -188,6 +189,35 @@ def as_rig(cameras) -> tuple[Camera, ...]:
     if not rig or not all(isinstance(c, (Orthographic, Perspective)) for c in rig):
         raise CameraError("a rig must be a non-empty sequence of Orthographic/Perspective cameras")
     return rig
+
+
+def scaled_size(size, factor: float) -> tuple[int, int]:
+    """(width, height) of an image of ``size`` resized by ``factor`` (rounded, at least 1 px)."""
+    w, h = _size(size)
+    return max(1, round(w * factor)), max(1, round(h * factor))
+
+
+def scale_camera(camera: Camera, factor: float) -> Camera:
+    """The camera that sees the same scene in its images resized by ``factor`` (0 < factor, e.g.
+    0.5 for half the width and height), pixel centres kept at integer coordinates: a pixel ``u``
+    becomes ``(u + 0.5) * s - 0.5`` with ``s`` the exact ratio of the rounded sizes per axis.
+
+    Raises:
+        CameraError: a factor that is not a finite number > 0.
+    """
+    if not (np.isfinite(factor) and factor > 0):
+        raise CameraError(f"scale: expected a finite factor > 0 (e.g. 0.5 for half size), got {factor!r}")
+    w, h = camera.size
+    size = scaled_size(camera.size, factor)
+    s = np.array([size[0] / w, size[1] / h])
+    if isinstance(camera, Orthographic):
+        if abs(s[0] - s[1]) > 1e-3 * s.max():
+            raise CameraError(f"scale {factor}: an orthographic camera of {w}x{h} px needs a factor that keeps "
+                              "its aspect ratio in whole pixels")
+        return Orthographic(R=camera.R, t=camera.t, scale=camera.scale * s.mean(),
+                            center=(np.asarray(camera.center) + 0.5) * s - 0.5, size=size)
+    S = np.array([[s[0], 0.0, 0.5 * s[0] - 0.5], [0.0, s[1], 0.5 * s[1] - 0.5], [0.0, 0.0, 1.0]])
+    return Perspective(K=S @ np.asarray(camera.K), R=camera.R, t=camera.t, size=size)
 
 
 # ---- camera files (JSON) ----

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._errors import InputError
-from .model import builtin_model, builtin_names, get_model, mirror_model, save_model
+from .model import add_palm, builtin_model, builtin_names, get_model, mirror_model, save_model
 from .model.builtin import BUILTIN_DESCRIPTIONS
 
 __all__ = ["register", "sketch_poses"]
@@ -17,6 +17,10 @@ def register(sub) -> None:
     p.add_argument("--export", metavar="FILE", help="write the model to FILE (.toml or .json)")
     p.add_argument("--mirror", action="store_true",
                    help="use the model's mirror image (a left hand from a right one and back)")
+    p.add_argument("--palm", action="store_true",
+                   help="add palm and forearm occluder pills laid out from the fingers' bases (for a learned "
+                        "foreground, which sees them; see jaxhand.model.add_palm)")
+    p.add_argument("--forearm-mm", type=float, default=250.0, help="forearm length with --palm (default 250)")
     p.set_defaults(func=_models)
     s = sub.add_parser("sketch", help="draw a model at its default and a few random poses to PNG")
     s.add_argument("--model", default="hand21", help="built-in name or model file")
@@ -37,6 +41,8 @@ def _models(args) -> int:
     m = get_model(args.name)
     if args.mirror:
         m = mirror_model(m)
+    if args.palm:
+        m = add_palm(m, forearm_mm=args.forearm_mm)
     lo, hi, q0 = (np.asarray(a) for a in (m.q_lower, m.q_upper, m.q_default))
     hand = f", {m.handedness} hand" if m.handedness != "none" else ""
     occ = f", {m.n_occluders} occluders ({', '.join(m.occluder_names)})" if m.n_occluders else ""

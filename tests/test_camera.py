@@ -88,3 +88,22 @@ def test_empty_rig_file_is_an_error(tmp_path):
     (tmp_path / "rig.json").write_text("[]")
     with pytest.raises(jh.CameraError, match="lists no camera"):
         jh.load_camera(tmp_path / "rig.json")
+
+
+@pytest.mark.parametrize("factor", [0.5, 0.25, 0.3])
+def test_a_scaled_camera_sees_the_resized_image(factor):
+    from jaxhand.camera import scale_camera
+
+    rng = np.random.default_rng(1)
+    p = rng.uniform(-60, 60, (20, 3))
+    persp = _perspective()
+    ortho = jh.Orthographic.fit(p, size=(320, 240))
+    for cam in (persp, ortho) if factor != 0.3 else (persp,):
+        small = scale_camera(cam, factor)
+        s = np.array(small.size) / np.array(cam.size)
+        assert small.size == (round(320 * factor), round(240 * factor))
+        np.testing.assert_allclose(np.asarray(small.project(p)[0]), (np.asarray(cam.project(p)[0]) + 0.5) * s - 0.5,
+                                   atol=1e-9)
+        np.testing.assert_allclose(np.asarray(small.project(p)[1]), np.asarray(cam.project(p)[1]), atol=1e-9)
+    with pytest.raises(jh.CameraError, match="scale: expected a finite factor > 0"):
+        scale_camera(persp, 0.0)

@@ -114,3 +114,14 @@ def test_frame_of_another_size_names_file_and_both_sizes(tmp_path):
         in frames[1].error
     with pytest.raises(jh.InputError, match=r"frame 0 is 16x12 px but the camera's image size is 320x240.*camera file"):
         list(open_frames([d], sizes=[(320, 240)])[0])
+
+
+def test_frames_resized_by_a_scale(tmp_path):
+    d = tmp_path / "frames"
+    d.mkdir()
+    image = np.random.default_rng(0).integers(0, 255, (48, 64), np.uint8)
+    cv2.imwrite(str(d / "frame_0.png"), image)
+    (frame,) = list(open_frames([d], sizes=[(32, 24)], scale=0.5)[0])
+    np.testing.assert_array_equal(frame.image, cv2.resize(image, (32, 24), interpolation=cv2.INTER_AREA))
+    with pytest.raises(jh.InputError, match=r"scale: expected a factor in \(0, 1\]"):
+        FrameSource(d, scale=2.0)

@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 
 from .._errors import InputError
+from ..camera import scaled_size
 
 __all__ = ["Frame", "FrameSource", "open_frames", "natural_key", "IMAGE_SUFFIXES"]
 
@@ -57,16 +58,22 @@ class FrameSource:
         size: the (width, height) in pixels every frame must have (the camera's), or None. The
             first frame of another size is an error (the camera does not fit the input); a later
             one is yielded as unreadable, with a message naming the file and both sizes.
+        scale: every frame is resized by this factor (area averaging) before that check, for
+            tracking at a lower resolution (with :func:`jaxhand.camera.scale_camera` of the camera).
 
     Raises:
         InputError: the path does not exist, the folder holds no images, the video has no
             frames or cannot be opened, or the first frame's size is not ``size``.
     """
 
-    def __init__(self, path: str | Path, fps: float = 25.0, size: tuple[int, int] | None = None):
+    def __init__(self, path: str | Path, fps: float = 25.0, size: tuple[int, int] | None = None,
+                 scale: float = 1.0):
         self.path = Path(path)
         if not fps > 0:
             raise InputError(f"fps must be > 0, got {fps}")
+        if not (np.isfinite(scale) and 0 < scale <= 1):
+            raise InputError(f"scale: expected a factor in (0, 1] (e.g. 0.5 for half size), got {scale!r}")
+        self.scale = float(scale)
         self.fps = float(fps)
         self.size = None if size is None else (int(size[0]), int(size[1]))
         if not self.path.exists():
@@ -111,7 +118,11 @@ class FrameSource:
         return np.stack(picked)
 
     def _frame(self, i: int, name: str, image: np.ndarray) -> Frame:
-        """The frame, or an unreadable one when its size is not :attr:`size` (an error on frame 0)."""
+        """The frame (resized by :attr:`scale`), or an unreadable one when its size is not
+        :attr:`size` (an error on frame 0)."""
+        if self.scale != 1.0:
+            h, w = image.shape[:2]
+            image = cv2.resize(image, scaled_size((w, h), self.scale), interpolation=cv2.INTER_AREA)
         h, w = image.shape[:2]
         if self.size is None or (w, h) == self.size:
             return Frame(i, i / self.fps, _grey(image))
@@ -143,16 +154,17 @@ class FrameSource:
             cap.release()
 
 
-def open_frames(paths, fps: float = 25.0, sizes=None) -> list[FrameSource]:
+def open_frames(paths, fps: float = 25.0, sizes=None, scale: float = 1.0) -> list[FrameSource]:
     """One :class:`FrameSource` per camera; all must have the same number of frames.
 
-    ``sizes``: one (width, height) per path that its frames must have (the cameras'), or None.
+    ``sizes``: one (width, height) per path that its frames must have (the cameras', after
+    ``scale``), or None. ``scale``: resize every frame by this factor (see :class:`FrameSource`).
     """
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
     sizes = [None] * len(paths) if sizes is None else list(sizes)
     if len(sizes) != len(paths):
         raise InputError(f"{len(paths)} input(s) but {len(sizes)} image size(s): give one per camera")
-    sources = [FrameSource(p, fps, size) for p, size in zip(paths, sizes)]
+    sources = [FrameSource(p, fps, size, scale) for p, size in zip(paths, sizes)]
     if not sources:
         raise InputError("no input given: pass a video file or an image folder per camera")
     counts = {len(s) for s in sources}

@@ -10,6 +10,7 @@ from ._mirror import mirror_model as mirror_model
 from ._mirror import mirror_q as mirror_q
 from ._mjcf import load_mjcf as load_mjcf
 from ._model import Model as Model
+from ._palm import add_palm as add_palm
 from ._tree import occluders_as_links as occluders_as_links
 from ._urdf import load_urdf as load_urdf
 from .builtin import builtin_model as builtin_model
@@ -18,7 +19,7 @@ from .builtin import builtin_spec as builtin_spec
 
 __all__ = ["Model", "builtin_model", "builtin_names", "builtin_spec", "load_model", "save_model",
            "model_from_dict", "model_to_dict", "FORMAT_VERSION", "get_model", "load_mjcf", "load_urdf",
-           "mirror_model", "mirror_q", "occluders_as_links"]
+           "mirror_model", "mirror_q", "occluders_as_links", "add_palm"]
 
 
 def get_model(name_or_path) -> Model:
