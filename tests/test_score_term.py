@@ -147,3 +147,24 @@ def test_the_terms_keep_the_closing_hand(open_close):
         errors[label] = float(np.mean(err))
     print(errors)
     assert errors["robust"] < 0.5 * errors["default"], errors
+
+
+def test_the_foreground_outline_is_compared_near_the_model_only():
+    from jaxhand.score import roi_box
+
+    image = np.zeros((120, 200), np.uint8)
+    image[40:60, 30:40] = 200     # the hand
+    image[90:110, 150:190] = 200  # something else, far away
+    hand = image[:, :] > 0
+    hand[:, 100:] = False
+    assert roi_box(hand, 0.25, 20.0) == (10, 20, 59, 79)   # 20 px margin: more than 0.25 x 20 px
+    assert roi_box(hand, None, 20.0) is None
+    whole = silhouette_term(image, ThresholdForeground(method="fixed", threshold=100), 0, ON)
+    near = silhouette_term(image, ThresholdForeground(method="fixed", threshold=100), 0, ON,
+                           box=roi_box(hand, 0.25, 20.0))
+    pts_whole = np.asarray(whole.contour)[np.asarray(whole.contour_valid)]
+    pts_near = np.asarray(near.contour)[np.asarray(near.contour_valid)]
+    assert (pts_whole[:, 0] > 140).sum() > 40   # the far object's outline is most of the whole image's
+    assert len(pts_near) > 40 and pts_near[:, 0].max() < 41 and pts_near[:, 0].min() > 28
+    with pytest.raises(jh.InputError, match=r"silhouette_term\.roi_margin: need a fraction >= 0 or None"):
+        SilhouetteTermConfig(roi_margin=-1.0)

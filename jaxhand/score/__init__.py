@@ -56,6 +56,7 @@ from ._term import SilhouettePrior as SilhouettePrior
 from ._term import SilhouetteTerm as SilhouetteTerm
 from ._term import SilhouetteTermConfig as SilhouetteTermConfig
 from ._term import pill_images as pill_images
+from ._term import roi_box as roi_box
 from ._term import silhouette_term as silhouette_term
 
 __all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsules_from_model",
@@ -65,4 +66,4 @@ __all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsule
            "score_silhouette", "score_frame", "score_poses", "ConfidenceConfig", "frame_confidence", "FOREGROUNDS",
            "ScoreSection", "foreground_for", "sequence_foreground", "SequenceBackground", "fill_holes",
            "SilhouetteTermConfig", "SilhouetteTerm",
-           "SilhouettePrior", "silhouette_term", "pill_images"]
+           "SilhouettePrior", "silhouette_term", "pill_images", "roi_box"]

@@ -42,7 +42,7 @@ from ..model import Model
 from ..priors import AbstractTerm
 from ._foreground import AbstractForeground, as_grey
 
-__all__ = ["SilhouetteTermConfig", "SilhouetteTerm", "SilhouettePrior", "silhouette_term", "pill_images"]
+__all__ = ["SilhouetteTermConfig", "SilhouetteTerm", "SilhouettePrior", "silhouette_term", "pill_images", "roi_box"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,6 +70,12 @@ class SilhouetteTermConfig:
         edge_fractions: where along each link its two sides are compared with the edges.
         canny_low, canny_high: Canny's hysteresis thresholds (grey levels of the gradient)
             after a Gaussian blur of ``canny_sigma_px``.
+        roi_margin: the foreground's outline is compared only inside the box of the model's
+            silhouette at the frame's starting pose, grown on every side by this fraction of the
+            box's larger side (at least ``roi_min_px``): foreground far from the hand (a body, a
+            second object, a forearm leaving the image) is not the model's to cover. None: the
+            whole image.
+        roi_min_px: the least margin of that box (px).
     """
 
     weight: float = 0.0
@@ -84,6 +90,8 @@ class SilhouetteTermConfig:
     canny_low: float = 20.0
     canny_high: float = 50.0
     canny_sigma_px: float = 1.0
+    roi_margin: float | None = 0.25
+    roi_min_px: float = 20.0
 
     def __post_init__(self):
         def need(cond, field, msg):
@@ -105,6 +113,9 @@ class SilhouetteTermConfig:
         need(0 <= self.canny_low <= self.canny_high, "canny_low/canny_high",
              f"need 0 <= low <= high, got {self.canny_low!r}, {self.canny_high!r}")
         need(self.canny_sigma_px >= 0, "canny_sigma_px", f"need >= 0 px, got {self.canny_sigma_px!r}")
+        need(self.roi_margin is None or self.roi_margin >= 0, "roi_margin",
+             f"need a fraction >= 0 or None (the whole image), got {self.roi_margin!r}")
+        need(self.roi_min_px >= 0, "roi_min_px", f"need >= 0 px, got {self.roi_min_px!r}")
 
     @property
     def enabled(self) -> bool:
@@ -295,13 +306,28 @@ class SilhouetteTerm(AbstractTerm):
         return 1.0 / (1.0 + (e / self.merit_rms_px) ** 2)
 
 
-def _outline_points(mask: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+def roi_box(silhouette: Bool[np.ndarray, "H W"], margin: float | None, min_px: float
+            ) -> tuple[float, float, float, float] | None:
+    """(x0, y0, x1, y1): the box of ``silhouette`` grown on every side by ``margin`` times its
+    larger side, at least ``min_px`` (None: no box, for margin None or an empty silhouette)."""
+    if margin is None or not silhouette.any():
+        return None
+    x, y, w, h = cv2.boundingRect(silhouette.astype(np.uint8))
+    grow = max(margin * max(w, h), min_px)
+    return x - grow, y - grow, x + w - 1 + grow, y + h - 1 + grow
+
+
+def _outline_points(mask: np.ndarray, n: int, box=None) -> tuple[np.ndarray, np.ndarray]:
     """``n`` points spread evenly along the mask's outlines (holes included), leaving out the
-    image's border rows and columns (a forearm leaving the image is not an outline)."""
+    image's border rows and columns (a forearm leaving the image is not an outline) and, with a
+    ``box`` (x0, y0, x1, y1), whatever lies outside it."""
     contours, _ = cv2.findContours(mask, cv2.RETR_LIST, cv2.CHAIN_APPROX_NONE)
     pts = np.concatenate([c.reshape(-1, 2) for c in contours]).astype(float) if contours else np.zeros((0, 2))
     h, w = mask.shape
-    pts = pts[(pts[:, 0] > 0) & (pts[:, 0] < w - 1) & (pts[:, 1] > 0) & (pts[:, 1] < h - 1)]
+    x0, y0, x1, y1 = (0, 0, w - 1, h - 1) if box is None else (max(box[0], 0), max(box[1], 0), min(box[2], w - 1),
+                                                               min(box[3], h - 1))
+    pts = pts[(pts[:, 0] > 0) & (pts[:, 0] < w - 1) & (pts[:, 1] > 0) & (pts[:, 1] < h - 1)
+              & (pts[:, 0] >= x0) & (pts[:, 0] <= x1) & (pts[:, 1] >= y0) & (pts[:, 1] <= y1)]
     out, valid = np.zeros((n, 2)), np.zeros(n, bool)
     if len(pts):
         take = np.unique(np.linspace(0, len(pts) - 1, min(n, len(pts))).round().astype(int))
@@ -310,10 +336,11 @@ def _outline_points(mask: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def silhouette_term(image, foreground: AbstractForeground, camera: int, config: SilhouetteTermConfig,
-                    dtype=None) -> SilhouetteTerm:
+                    dtype=None, box=None) -> SilhouetteTerm:
     """A frame's :class:`SilhouetteTerm` for camera ``camera`` of the rig from its image and
     foreground model (inactive when the foreground covers less than ``config.min_share`` or
-    more than ``config.max_share`` of the image)."""
+    more than ``config.max_share`` of the image); ``box`` (x0, y0, x1, y1; :func:`roi_box`)
+    limits the foreground's outline points to a region of interest."""
     mask = foreground.mask(image).astype(np.uint8)
     share = float(mask.mean())
     active = config.min_share <= share <= config.max_share
@@ -322,7 +349,7 @@ def silhouette_term(image, foreground: AbstractForeground, camera: int, config: 
         inside = cv2.distanceTransform(mask, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
         # the outline lies half a pixel beyond the last foreground pixel centre
         sdf = np.where(mask > 0, 0.5 - inside, outside - 0.5)
-        contour, valid = _outline_points(mask * 255, config.contour_points)
+        contour, valid = _outline_points(mask * 255, config.contour_points, box)
         gy, gx = np.gradient(sdf)   # half a pixel outwards, onto the outline itself
         rows, cols = contour[:, 1].astype(int), contour[:, 0].astype(int)
         g = np.stack([gx[rows, cols], gy[rows, cols]], -1)

@@ -27,6 +27,7 @@ from ..score import (
     foreground_for,
     image_evidence,
     rasterize,
+    roi_box,
     score_silhouette,
     sequence_foreground,
     silhouette_term,
@@ -154,16 +155,23 @@ class ImageFrontEnd(AbstractFrontEnd):
         timings = dict(diag.timings_s) if diag.timings_s else {}
         return FrontEndResult(tuple(features), diag.state,
                               FrontEndDiagnostics(windows=WindowOutlines(diag), timings_s=timings, method=diag.method),
-                              self._silhouette_terms(images, frame))
+                              self._silhouette_terms(images, frame, q))
 
-    def _silhouette_terms(self, images, frame: int) -> tuple:
+    def _silhouette_terms(self, images, frame: int, q: np.ndarray) -> tuple:
+        """The frame's silhouette terms, built at its first extraction, their foreground outline
+        limited to the region of interest of the model at that extraction's start ``q``."""
         config = self.config.silhouette_term
         if not config.enabled:
             return ()
         if self._terms is None or self._terms[0] != frame:
             section = self._section()
-            self._terms = (frame, tuple(silhouette_term(im, self._foreground(section, c, im), c, config)
-                                        for c, im in enumerate(images)))
+            boxes = [None] * len(images)
+            if config.roi_margin is not None:
+                caps = capsules_from_model_batch(self.model, q.astype(float).reshape(1, -1))[0]
+                boxes = [roi_box(rasterize(caps, cam).mask, config.roi_margin, config.roi_min_px)
+                         for cam in self._cameras()]
+            self._terms = (frame, tuple(silhouette_term(im, self._foreground(section, c, im), c, config, box=box)
+                                        for c, (im, box) in enumerate(zip(images, boxes))))
         return self._terms[1]
 
     def refresh(self, images, q, state: ImageState | None) -> ImageState | None:
