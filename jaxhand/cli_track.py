@@ -72,6 +72,10 @@ def register(sub) -> None:
                         "[image.score] background_image in --config (default: the settings', "
                         f"{defaults.image.score.foreground}; 'auto' where a preset's silhouette term needs one)")
     p.add_argument("--fps", type=float, default=25.0, help="frame rate of image folders")
+    p.add_argument("--scale", type=float, default=1.0,
+                   help="track the frames resized by this factor in (0, 1], the cameras and --landmarks with them "
+                        "(e.g. 0.5 for a 1280x720 video: the searches' pixel settings suit a finger some 10-20 px "
+                        "wide, and it runs faster); the outputs and the landmark agreement are at that size")
     p.add_argument("--truth", help="ground truth: a 'jaxhand synth' ground_truth.json or its folder, or a dev-set "
                                    "truth.json or its folder (data/mujoco/README.md; default: the input folder's)")
     p.add_argument("--max-frames", type=int, metavar="N", help="stop after N frames (N >= 1)")
@@ -111,7 +115,7 @@ def _is_synth(folder: Path) -> bool:
 
 
 def _resolve(args):
-    from .camera import load_camera
+    from .camera import load_camera, scale_camera
     from .io import load_devset, open_frames
     from .model import get_model
     from .render import load_sequence
@@ -141,7 +145,12 @@ def _resolve(args):
         fps = 1.0 / float(synth.times_s[1] - synth.times_s[0])
     elif dev is not None:
         fps = dev.fps
-    sources = open_frames(inputs, fps=fps, sizes=[c.size for c in cameras])
+    if not (np.isfinite(args.scale) and 0 < args.scale <= 1):
+        raise InputError(f"--scale: expected a factor in (0, 1] (e.g. 0.5 for half size), got {args.scale:g}")
+    native = cameras[0].size
+    if args.scale != 1.0:
+        cameras = tuple(scale_camera(c, args.scale) for c in cameras)
+    sources = open_frames(inputs, fps=fps, sizes=[c.size for c in cameras], scale=args.scale)
     truth = None
     if args.truth:
         truth = load_truth_arg(args.truth, model)
@@ -156,7 +165,7 @@ def _resolve(args):
             raise InputError(f"{where} has {len(truth)} frame(s) but the input has {n}: give the truth of this "
                              "input (or track fewer frames with --max-frames)")
     q_first = None if folder is None else (synth.q[0] if synth is not None else dev.truth.q[0])
-    return model, cameras, sources, truth, q_first
+    return model, cameras, sources, truth, q_first, native
 
 
 def load_truth_arg(path: str | Path, model) -> np.ndarray:
@@ -258,12 +267,14 @@ def _track(args) -> int:
     if (args.fuse_landmarks is not None or args.no_restart or args.restart_px is not None) and not args.landmarks:
         raise InputError("--fuse-landmarks, --no-restart and --restart-px act on landmarks: give --landmarks FILE")
     out = out_dir(args.out)
-    model, cameras, sources, truth, q_first = _resolve(args)
+    model, cameras, sources, truth, q_first, native = _resolve(args)
     landmarks = None
     if args.landmarks:
         from .landmarks import load_landmarks
 
         landmarks = load_landmarks(args.landmarks)
+        if args.scale != 1.0:
+            landmarks = landmarks.resized(native, cameras[0].size)
     if args.init is None and landmarks is not None:
         q0 = None   # the first frame's landmark pose
     elif args.init is None and q_first is not None:

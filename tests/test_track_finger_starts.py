@@ -141,3 +141,15 @@ def test_bending_the_weakest_finger_brings_the_ring_finger_back_on_wave_two_came
         errors[label] = float(np.mean(err))
     print(errors)
     assert errors["with"] < 0.4 * errors["without"], errors
+
+
+def test_the_rest_start_is_kept_but_not_valid_unless_the_frame_before_was_doubtful():
+    m = jh.builtin_model("hand21")
+    q = np.asarray(m.q_default, float) + 0.1
+    hyp = HypothesisConfig(rest=True, rest_below=0.5)
+    for ok in (True, False):
+        rows, valid, labels = extra_starts(m, hyp, q, None, None, None, None, 0, rest_ok=ok)
+        assert labels == ("rest",) and valid.tolist() == [ok]
+        np.testing.assert_allclose(rows[0], np.asarray(m.q_default))   # hand21's base is fixed: no base entries
+    with pytest.raises(jh.InputError, match=r"hypotheses\.rest_below: must lie in \[0, 1\]"):
+        HypothesisConfig(rest_below=1.5)

@@ -223,3 +223,22 @@ def test_landmark_config_round_trips_and_names_bad_values(tmp_path):
                           ({"restart_pix": 3.0}, r"landmarks\.restart_pix: unknown key; did you mean 'restart_px'")):
         with pytest.raises(jh.InputError, match=message):
             config_from_dict({"landmarks": data})
+
+
+def test_tracking_at_half_size_keeps_the_landmark_poses(seq, lm_file, synth_dir, tmp_path, capsys):
+    from jaxhand.camera import scale_camera
+
+    ls = load_landmarks(lm_file)
+    small = scale_camera(seq.cameras[0], 0.5)
+    half = ls.resized((160, 120), small.size)
+    assert half.image_size == (80, 60)
+    np.testing.assert_allclose(half.px, (ls.px + 0.5) * 0.5 - 0.5)
+    full = fit_landmark_poses(seq.model, seq.cameras[0], ls, fit="frames")
+    halved = fit_landmark_poses(seq.model, small, half, fit="frames")
+    joints = slice(seq.model.n_base_q, None)
+    assert np.degrees(np.abs(halved.q[:, joints] - full.q[:, joints])).max() < 2.0   # whatever the size
+    base = ["track", str(synth_dir), "--out", str(tmp_path / "o"), "--no-video"]
+    assert main(base + ["--scale", "0.5"]) == 0
+    assert "tracked 2 frames" in capsys.readouterr().out
+    assert main(base + ["--scale", "1.5", "--overwrite"]) == 2
+    assert "--scale: expected a factor in (0, 1]" in _one_line_error(capsys)

@@ -89,6 +89,13 @@ class LandmarkSequence:
     def valid(self) -> np.ndarray:
         return np.all(np.isfinite(self.px), -1)
 
+    def resized(self, size, new_size) -> LandmarkSequence:
+        """The landmarks of the video resized from ``size`` to ``new_size`` (width, height), as
+        :func:`jaxhand.camera.scale_camera` resizes its camera (pixel centres at integers)."""
+        s = np.asarray(new_size, float) / np.asarray(size, float)
+        return dataclasses.replace(self, px=(self.px + 0.5) * s - 0.5,
+                                   image_size=(int(new_size[0]), int(new_size[1])))
+
     def to_landmarks(self, *, mirror_cx: float | None = None, mm_weight: float = 1.0) -> Landmarks:
         """Batched :class:`Landmarks` (T, 1, 21, 2), the confidences as weights; with
         ``mirror_cx`` the x coordinates are mirrored about that column (:func:`mirror_x`)."""

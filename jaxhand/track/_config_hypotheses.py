@@ -26,6 +26,9 @@ class HypothesisConfig:
         folds: static. Starts with one hinge reflected across its fold (the one-view depth ambiguity).
         last_solve: static. Also start from the last frame's solve.
         rest: static. Also start from the model's default joint angles (the predicted base).
+        rest_below: host, in [0, 1]. ...only after a frame whose confidence is below this (1: after
+            every frame). A start far from the motion can win by a hair where the image cannot
+            tell two branches apart (a finger flexing or hyperextending towards the camera).
         carry: static. Runners-up carried to the next frame as extra starts (at most this many).
         carry_margin: host, in [0, 1]. A runner-up is carried when its merit is at least this
             share of the winner's (the score could not decide between them).
@@ -52,6 +55,7 @@ class HypothesisConfig:
     folds: int = 0
     last_solve: bool = False
     rest: bool = False
+    rest_below: float = 1.0
     carry: int = 0
     carry_margin: float = 0.9
     carry_min_deg: float = 5.0
@@ -72,7 +76,7 @@ class HypothesisConfig:
             value = getattr(self, name)
             need(finite_number(value) and value >= 0, f"hypotheses.{name}",
                  f"expected a finite number >= 0, got {value!r}")
-        for name in ("carry_margin", "finger_level"):
+        for name in ("carry_margin", "finger_level", "rest_below"):
             value = getattr(self, name)
             need(finite_number(value) and 0.0 <= value <= 1.0,
                  f"hypotheses.{name}", f"must lie in [0, 1], got {value!r}")

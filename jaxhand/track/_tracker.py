@@ -213,7 +213,8 @@ class Tracker:
         if not (hyp.enabled or proposals is not None):
             return None
         extras = extra_starts(self.model, hyp, np.asarray(state.ghk.x), state.q_solved, state.carried, proposals,
-                              state.q_last if state.lost else None, frame, self._flexion.get(state.weak_finger))
+                              state.q_last if state.lost else None, frame, self._flexion.get(state.weak_finger),
+                              rest_ok=hyp.rest_below >= 1.0 or state.confidence < hyp.rest_below)
         return extras if len(extras[0]) or hyp.flips or hyp.folds else None   # recovery alone: a frame after a good one
 
     def _solve_hypotheses(self, program: HypothesisProgram, feats, ghk, state: TrackState, extras, images, fe_state,
