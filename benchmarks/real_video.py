@@ -22,7 +22,7 @@ fit shared by the runs). Runs, each from frame 0's landmark pose:
 The runs with the learned foreground (``r``, ``l``, ``t`` and their fused runs) track the calibrated
 model with a palm and a forearm (:func:`jaxhand.model.add_palm`): the learned foreground sees them.
 
-``--scale S`` tracks the video resized by S (the camera with it, :func:`jaxhand.camera.scale_camera`, and
+``--scale S`` tracks the video resized by S (its runs are named ``<run>@S``) (the camera with it, :func:`jaxhand.camera.scale_camera`, and
 the landmark pixels the fused runs use); the agreement is measured at the video's own size either way.
 
 On the fingers: every one of the 21 projected model landmark points (joint centres, fingertips
@@ -132,7 +132,8 @@ def main() -> None:
                            landmarks=poses_s, max_frames=args.frames, overwrite=True)
         done = np.load(Path(args.out) / name / "results.npz")
         ag = landmark_agreement(model, camera, poses, done["frame"], done["q"])
-        results["runs"][name] = {"config": {"restart": lm.restart, "restart_px": lm.restart_px,
+        key = name if args.scale == 1.0 else f"{name}@{args.scale:g}"
+        results["runs"][key] = {"config": {"restart": lm.restart, "restart_px": lm.restart_px,
                                             "fuse_weight": lm.fuse_weight, "filter": config.filter.enabled,
                                             "palm": palm and f"forearm {args.forearm_mm:g} mm",
                                             "scale": args.scale},
@@ -142,7 +143,7 @@ def main() -> None:
                                  "frames_per_second_steady": s["frames_per_second_steady"],
                                  "frames_per_second_end_to_end": s["frames_per_second_end_to_end"],
                                  "median_ms_per_stage": s["median_ms_per_stage"]}
-        rows.append([name, lm.restart, f"{lm.restart_px:g}", f"{lm.fuse_weight:g}", config.filter.enabled,
+        rows.append([key, lm.restart, f"{lm.restart_px:g}", f"{lm.fuse_weight:g}", config.filter.enabled,
                      f"{ag['frames_on_fingers']}/{ag['frames_compared']}", f"{ag['share_on_fingers']:.3f}",
                      f"{ag['median_px']:.1f}", f"{ag['share_points_within']:.3f}", s["landmarks"]["restarts"],
                      s["lost_frames"], f"{s['frames_per_second_steady']:.2f}"])

@@ -167,3 +167,30 @@ def test_priors_stack_under_the_image_residuals_with_their_jacobian(jacobian):
     assert np.allclose(np.asarray(r[n:]), np.asarray(stack_priors(priors, q)), rtol=0, atol=1e-12)
     assert np.allclose(np.asarray(J), np.asarray(jax.jacfwd(residuals)(q, args)), rtol=0, atol=1e-9)
     assert np.allclose(np.asarray(residuals(q, args)), np.asarray(r), rtol=0, atol=1e-12)
+
+
+def test_the_hyperextension_limit_acts_on_the_fingers_extension_side_only():
+    from pathlib import Path
+
+    from jaxhand.io import load_devset
+    from jaxhand.track import PriorConfig
+    from jaxhand.track._flexion import hyperextension_limits
+
+    dev = Path(__file__).resolve().parent.parent / "data" / "mujoco"
+    for m in (builtin_model("hand21"), load_devset(dev / "open_close").model):
+        prior = hyperextension_limits(m, 30.0, 15.0)
+        names = [m.q_names[i] for i in prior.index]
+        assert len(names) == 12 and not any(n.startswith("thumb") for n in names)
+        mcp = prior.index[names.index(next(n for n in names if n.startswith("index_mcp")))]
+        ext = -1.0 if abs(float(m.q_upper[mcp])) >= abs(float(m.q_lower[mcp])) else 1.0   # the narrower side
+        for deg, expected in ((10.0, 0.0), (25.0, 30.0 * np.radians(10.0)), (-60.0, 0.0)):   # -60: flexed
+            q = np.asarray(m.q_default, float).copy()
+            q[mcp] = np.radians(deg) * ext
+            r = np.asarray(prior(jnp.asarray(q)))
+            assert abs(r[prior.index.index(mcp)]) == pytest.approx(expected, abs=1e-12)
+    for name in ("open_close", "fast_spread"):   # the truth never pays (fast_spread bends back 11 deg)
+        seq = load_devset(dev / name)
+        prior = hyperextension_limits(seq.model, 30.0, 15.0)
+        assert float(np.abs(np.asarray(jax.vmap(prior)(jnp.asarray(seq.truth.q)))).max()) == 0.0
+    with pytest.raises(jh.InputError, match="prior.hyperextension_weight: expected a finite number >= 0"):
+        PriorConfig(hyperextension_weight=-1.0)

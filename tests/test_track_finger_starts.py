@@ -29,7 +29,8 @@ from jaxhand.track import (
     config_from_dict,
     config_to_dict,
 )
-from jaxhand.track._hypotheses import extra_starts, finger_starts, flexion_hinges
+from jaxhand.track._flexion import flexion_hinges
+from jaxhand.track._hypotheses import extra_starts, finger_starts
 from jaxhand.track._support import finger_of_frame, finger_of_link
 
 DEVSET = Path(__file__).resolve().parent.parent / "data" / "mujoco"

@@ -34,6 +34,7 @@ from ..priors import TemporalPrior, dip_pip_coupling, information_weight, soft_l
 from ..residuals import ResidualArgs, feature_distances, residuals_and_jacobian
 from ..solve.internal import fit_traced, solver_program
 from ._config import TrackConfig
+from ._flexion import hyperextension_limits
 from ._score import frame_score
 
 __all__ = ["FrameProgram", "frame_step", "solve_frame", "seen_at", "finish_frame", "step_constants", "robust_solve",
@@ -116,6 +117,8 @@ class _Priors(eqx.Module):
         if config.soft_limit_weight:
             fixed.append(soft_limits(model, weight=config.soft_limit_weight,
                                      margin=float(np.radians(config.soft_limit_margin_deg))))
+        if config.hyperextension_weight:
+            fixed.append(hyperextension_limits(model, config.hyperextension_weight, config.hyperextension_deg))
         weight = (jnp.asarray(temporal_weight(model, config.temporal_sigma_deg, config.temporal_sigma_mm), dtype)
                   if config.temporal else None)
         ratio = jnp.asarray(config.information_ratio, dtype) if config.information_ratio else None

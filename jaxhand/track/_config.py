@@ -188,6 +188,11 @@ class PriorConfig:
         soft_limit_weight: traced, 1/rad. Soft joint limits beyond ``soft_limit_margin_deg`` (0: none).
         soft_limit_margin_deg: traced, deg. Where each soft limit starts, past its hard limit (the
             ``bounded`` solver never goes there); negative: that far inside, as a pose at its limits is unlikely.
+        hyperextension_weight: traced, 1/rad. A soft limit on the extension side of each planar
+            finger's flexion hinges (the narrower side of the range), ``hyperextension_deg`` past
+            straight (0: none): seen from the front, a finger flexing towards the camera and one
+            bending back look alike, and a hand flexes far more often than it hyperextends.
+        hyperextension_deg: traced, deg. Where that soft limit starts, past the straight finger.
     """
 
     temporal_sigma_deg: float | None = 0.0
@@ -199,6 +204,8 @@ class PriorConfig:
     dip_pip_weight: float | None = 0.0
     soft_limit_weight: float | None = 0.0
     soft_limit_margin_deg: float | None = 0.0
+    hyperextension_weight: float | None = 0.0
+    hyperextension_deg: float | None = 15.0
 
     def __post_init__(self):
         for f in dataclasses.fields(self):

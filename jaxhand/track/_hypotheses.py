@@ -44,7 +44,7 @@ from ._compiled import SCALARS, _Solved, _Static, features_ok, finish_frame, sol
 from ._config import HypothesisConfig, TrackConfig
 
 __all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "image_merit", "choose", "runners_up", "recovery_starts",
-           "extra_starts", "flexion_hinges", "finger_starts", "LABELS"]
+           "extra_starts", "finger_starts", "LABELS"]
 
 #: The kinds of start, as :attr:`StepReport.hypothesis` names the winner's.
 LABELS = ("prediction", "flip", "fold", "last_solve", "rest", "carried", "proposal", "recover", "finger")
@@ -294,24 +294,6 @@ def recovery_starts(model: Model, q_good: np.ndarray, hyp: HypothesisConfig, fra
     rng = np.random.default_rng((hyp.seed, frame))
     starts = q_good + sigma * rng.standard_normal((hyp.recover, model.n_q))
     return np.clip(starts, np.asarray(model.q_lower), np.asarray(model.q_upper))
-
-
-def flexion_hinges(model: Model, finger_of_frame: np.ndarray) -> dict[int, np.ndarray]:
-    """Per planar finger (:func:`~jaxhand.track._support.finger_of_frame`), the q entries of its
-    flexion hinges: the revolute joints whose axis, at the default pose, is parallel (to 25 deg) to
-    the axis of the finger's last hinge (a hand's MCP flexion, PIP and DIP). A finger is planar
-    when at most one of its hinges is not a flexion hinge (its abduction): bending its flexion
-    hinges together follows its motion. A thumb, with two abduction hinges, is left out."""
-    axes = np.asarray(pose(model, jnp.asarray(model.q_default)).frames)[:, :3, 2]
-    hinges = [f for f in range(len(model.parents))
-              if model.joint_kinds[f] == "revolute" and model.q_index[f] >= model.n_base_q]
-    out = {}
-    for g in np.unique(finger_of_frame[finger_of_frame >= 0]):
-        own = [f for f in hinges if finger_of_frame[f] == g]
-        flexion = [f for f in own if abs(axes[f] @ axes[own[-1]]) > np.cos(np.radians(25))]
-        if flexion and len(own) - len(flexion) <= 1:
-            out[int(g)] = np.array([model.q_index[f] for f in flexion], int)
-    return out
 
 
 def finger_starts(q_pred: np.ndarray, joints: np.ndarray, bends_deg, lower: np.ndarray, upper: np.ndarray

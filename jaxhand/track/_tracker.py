@@ -38,8 +38,9 @@ from ..model import Model
 from ..solve import STATUS_NAMES
 from ._compiled import FEATURE_FIELDS, SCALARS, FrameProgram
 from ._config import TrackConfig
+from ._flexion import flexion_hinges
 from ._frontend import AbstractFrontEnd, FrontEndDiagnostics
-from ._hypotheses import HypothesisProgram, check_proposals, choose, extra_starts, flexion_hinges, runners_up
+from ._hypotheses import HypothesisProgram, check_proposals, choose, extra_starts, runners_up
 from ._score import held_filter, judge_frame
 from ._support import (
     finger_of_frame,
