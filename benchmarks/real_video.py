@@ -22,8 +22,9 @@ fit shared by the runs). Runs, each from frame 0's landmark pose:
 The runs with the learned foreground (``r``, ``l``, ``t`` and their fused runs) track the calibrated
 model with a palm and a forearm (:func:`jaxhand.model.add_palm`): the learned foreground sees them.
 
-``--scale S`` tracks the video resized by S (its runs are named ``<run>@S``) (the camera with it, :func:`jaxhand.camera.scale_camera`, and
-the landmark pixels the fused runs use); the agreement is measured at the video's own size either way.
+``--scale S`` tracks the video resized by S (runs named ``<run>@S``), the camera with it
+(:func:`jaxhand.camera.scale_camera`) and the landmark pixels the fused runs use; the agreement
+is measured at the video's own size either way.
 
 On the fingers: every one of the 21 projected model landmark points (joint centres, fingertips
 on the skin, the wrist) within 15 px of MediaPipe's (``jaxhand.landmarks.landmark_agreement``).
@@ -98,8 +99,8 @@ def main() -> None:
     ap.add_argument("--runs", default=None,
                     help="comma-separated subset of a,b,b15,c<W>,c<W>nf,r,rc<W>,l,lc<W>,t,tc<W>")
     ap.add_argument("--out", default="/tmp/jaxhand_real_video", help="folder for the runs' outputs")
-    ap.add_argument("--forearm-mm", type=float, default=250.0,
-                    help="forearm length of the palm model of the learned-foreground runs (default 250)")
+    ap.add_argument("--forearm-mm", type=float, default=40.0,
+                    help="forearm length of the learned-foreground runs' palm model (default 40: the wrist bends)")
     ap.add_argument("--scale", type=float, default=1.0, help="track the video resized by this factor (default 1)")
     ap.add_argument("--merge", action="store_true", help="add the runs to those of an earlier results file")
     args = ap.parse_args()

@@ -20,7 +20,9 @@ def register(sub) -> None:
     p.add_argument("--palm", action="store_true",
                    help="add palm and forearm occluder pills laid out from the fingers' bases (for a learned "
                         "foreground, which sees them; see jaxhand.model.add_palm)")
-    p.add_argument("--forearm-mm", type=float, default=250.0, help="forearm length with --palm (default 250)")
+    p.add_argument("--forearm-mm", type=float, default=100.0,
+                   help="forearm length with --palm (default 100, as the dev set's hand; it is rigid with the "
+                        "palm, so keep it short where the wrist bends)")
     p.set_defaults(func=_models)
     s = sub.add_parser("sketch", help="draw a model at its default and a few random poses to PNG")
     s.add_argument("--model", default="hand21", help="built-in name or model file")

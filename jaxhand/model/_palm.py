@@ -12,6 +12,8 @@ lays out its palm:
   radius of 0.4 times the palm's width across the outer MCPs.
 
 The wrist is the root's origin (where the built-in hands and the development set's hand put it).
+The forearm is rigid with the palm, as in the development set; a real wrist bends, so keep it
+short there.
 """
 
 from __future__ import annotations
@@ -51,7 +53,7 @@ def _root_frame_poses(model: Model) -> np.ndarray:
         return np.linalg.inv(np.asarray(base_pose(model, q))) @ T
 
 
-def add_palm(model: Model, *, forearm_mm: float = 250.0) -> Model:
+def add_palm(model: Model, *, forearm_mm: float = 100.0) -> Model:
     """``model`` with occluder pills ``palm_<finger>`` and ``forearm`` (see the module docstring).
 
     Raises:
