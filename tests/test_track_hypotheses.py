@@ -425,3 +425,32 @@ def test_coarse_to_fine_finds_a_start_at_the_truth(hand):
     assert rep.hypothesis == "proposal" and rep.starts == 3
     np.testing.assert_allclose(rep.q_solved, truth, atol=1e-6)
     assert rep.rms_px < 1e-4 and not rep.lost
+
+
+def test_too_far_never_rules_out_the_prediction():
+    from jaxhand.track._hypotheses import too_far
+
+    qs = np.array([[9.0, 0.0, 0.0], [0.0, 0.2, 0.0], [0.0, 0.6, 0.0], [0.0, 0.0, 5.0]])
+    joints = np.array([False, True, False])   # the third entry is not a joint angle (a base entry)
+    np.testing.assert_array_equal(too_far(qs, np.zeros(3), joints, 0.5), [False, False, True, False])
+
+
+def test_a_far_candidate_cannot_win_after_a_trusted_frame(hand):
+    """The start at the truth, far from the last estimate, wins without the step limit and not
+    with it, whether the merit alone chooses (on the device) or an image score does (on the host)."""
+    m, (cam,), truth = hand
+    rig = (cam, fit_camera(m, truth, R=look_at_rotation([1.0, -0.3, -0.4], [0, 0, 0])))
+    feats = features_from_pose(m, rig, truth)
+    lo, hi = np.asarray(m.q_lower), np.asarray(m.q_upper)
+    bad = lo + 0.02 * (hi - lo)
+    frontend = FunctionFrontEnd(lambda images, q, state, frame: feats, reextracts=False)
+    for step, expected in ((0.0, "proposal"), (20.0, "prediction")):
+        tracker = Tracker(m, rig, frontend, TrackConfig(reextract=0, hypotheses=HypothesisConfig(max_step_deg=step)))
+        rep = tracker.step(tracker.init(bad), [None, None], 0, proposals=truth[None])[1]
+        assert rep.hypothesis == expected
+    for step, expected in ((0.0, "proposal"), (20.0, "prediction")):
+        scored = _ScoredFrontEnd(feats, 0, float(truth[0]))
+        tracker = Tracker(m, rig, scored, TrackConfig(reextract=0, hypotheses=HypothesisConfig(max_step_deg=step)))
+        assert tracker.step(tracker.init(bad), [None, None], 0, proposals=truth[None])[1].hypothesis == expected
+    with pytest.raises(jh.InputError, match=r"hypotheses\.step_trust: must lie in \[0, 1\]"):
+        HypothesisConfig(step_trust=2.0)

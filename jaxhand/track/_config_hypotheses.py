@@ -29,6 +29,12 @@ class HypothesisConfig:
         rest_below: host, in [0, 1]. ...only after a frame whose confidence is below this (1: after
             every frame). A start far from the motion can win by a hair where the image cannot
             tell two branches apart (a finger flexing or hyperextending towards the camera).
+        max_step_deg: host, deg. After a frame whose confidence reached ``step_trust``, a candidate
+            that moves some joint (not the base) more than this from the last estimate cannot win,
+            unless it is the prediction's (0: no limit). A hand's joints move some 25 deg per frame
+            at 30 frames/s at most; a start far from the motion that wins by a hair with a 60-deg
+            jump (a curling finger sent into hyperextension) is a branch change, not motion.
+        step_trust: host, in [0, 1]. The confidence a frame needs for ``max_step_deg`` to hold on the next.
         carry: static. Runners-up carried to the next frame as extra starts (at most this many).
         carry_margin: host, in [0, 1]. A runner-up is carried when its merit is at least this
             share of the winner's (the score could not decide between them).
@@ -56,6 +62,8 @@ class HypothesisConfig:
     last_solve: bool = False
     rest: bool = False
     rest_below: float = 1.0
+    max_step_deg: float = 0.0
+    step_trust: float = 0.5
     carry: int = 0
     carry_margin: float = 0.9
     carry_min_deg: float = 5.0
@@ -72,11 +80,11 @@ class HypothesisConfig:
             count(getattr(self, name), f"hypotheses.{name}")
         for name in ("last_solve", "rest"):
             flag(getattr(self, name), f"hypotheses.{name}")
-        for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm"):
+        for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm", "max_step_deg"):
             value = getattr(self, name)
             need(finite_number(value) and value >= 0, f"hypotheses.{name}",
                  f"expected a finite number >= 0, got {value!r}")
-        for name in ("carry_margin", "finger_level", "rest_below"):
+        for name in ("carry_margin", "finger_level", "rest_below", "step_trust"):
             value = getattr(self, name)
             need(finite_number(value) and 0.0 <= value <= 1.0,
                  f"hypotheses.{name}", f"must lie in [0, 1], got {value!r}")

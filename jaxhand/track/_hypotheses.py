@@ -44,7 +44,7 @@ from ._compiled import SCALARS, _Solved, _Static, features_ok, finish_frame, sol
 from ._config import HypothesisConfig, TrackConfig
 
 __all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "image_merit", "choose", "runners_up", "recovery_starts",
-           "extra_starts", "finger_starts", "LABELS"]
+           "extra_starts", "finger_starts", "too_far", "joint_angles", "LABELS"]
 
 #: The kinds of start, as :attr:`StepReport.hypothesis` names the winner's.
 LABELS = ("prediction", "flip", "fold", "last_solve", "rest", "carried", "proposal", "recover", "finger")
@@ -211,25 +211,28 @@ def _commit_jit(static: _Static, consts: tuple, cands: _Candidates, index, ghk: 
 
 @functools.partial(jax.jit, static_argnums=0)
 def _chosen_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras, extra_valid, q_last,
-                terms: tuple = ()):
+                terms: tuple = (), max_step=jnp.inf):
     """The whole frame in one call where the merit alone chooses (no host score): the candidates,
     the winner (the first best merit, as :func:`choose` picks) and its commit; also every
     candidate's q and merit, and the winner's index. With ``coarse_steps`` the candidates are
     the coarse solves, and the winner's start is solved again in full: a frame whose coarse
-    choice is the full one gives the full path's numbers."""
+    choice is the full one gives the full path's numbers. A candidate other than the prediction's
+    that moves a joint more than ``max_step`` (rad) from ``q_last`` cannot win (:func:`too_far`)."""
     (model, rig, build, fit_config, numbers, passes, use_filter, hold, priors, report_solve), \
         (n_flips, flip_rad, n_folds, coarse_steps) = _unpack(static, consts)
     feats, ghk = tuple(Features(*f) for f in feats), GHKState(*ghk)
     cands = candidates(model, rig, feats, ghk, extras, extra_valid, build, fit_config, numbers, passes, priors,
                        n_flips, flip_rad, n_folds, terms, coarse_steps)
-    index = jnp.argmax(cands.merit)
+    step = jnp.max(jnp.abs(cands.solved.q - q_last)[:, joint_angles(model)], axis=1, initial=0.0)
+    merit = jnp.where((step > max_step).at[0].set(False), -1.0, cands.merit)
+    index = jnp.argmax(merit)
     if coarse_steps:
         solved = solve_frame(model, rig, feats, ghk.x, cands.starts[index], build, fit_config, numbers, passes,
                              priors, terms)
     else:
         solved = jax.tree_util.tree_map(lambda a: a[index], cands.solved)
     out = finish_frame(model, ghk, q_last, solved, cands.features_ok, numbers, use_filter, hold, report_solve)
-    return _pack(out), (cands.solved.q, cands.merit, index)
+    return _pack(out), (cands.solved.q, merit, index)
 
 
 class HypothesisProgram:
@@ -255,10 +258,12 @@ class HypothesisProgram:
         """``(q_solved, q_filtered, scalars), (x, v, a)`` of the chosen candidate."""
         return _commit_jit(self._static, self._consts, cands, jnp.asarray(index), ghk, q_last)
 
-    def chosen(self, feats: tuple, ghk: tuple, extras, extra_valid, q_last, terms: tuple = ()):
+    def chosen(self, feats: tuple, ghk: tuple, extras, extra_valid, q_last, terms: tuple = (), max_step=np.inf):
         """``(packed results as commit's), (qs, merit, winner)`` of the frame in one call, the
-        winner chosen by the merit alone (:func:`_chosen_jit`; device arrays)."""
-        return _chosen_jit(self._static, self._consts, feats, ghk, extras, extra_valid, q_last, terms)
+        winner chosen by the merit alone among the candidates within ``max_step`` (rad) of
+        ``q_last`` (:func:`_chosen_jit`; device arrays)."""
+        return _chosen_jit(self._static, self._consts, feats, ghk, extras, extra_valid, q_last, terms,
+                           jnp.asarray(max_step, jnp.asarray(q_last).dtype))
 
 
 def choose(merit: np.ndarray, scores: np.ndarray | None = None) -> tuple[int, np.ndarray]:
@@ -267,6 +272,19 @@ def choose(merit: np.ndarray, scores: np.ndarray | None = None) -> tuple[int, np
     total = np.asarray(merit, float) * (1.0 if scores is None else np.asarray(scores, float))
     total = np.where(np.asarray(merit) < 0, -1.0, total)   # padding slots and failed solves never win
     return int(np.argmax(total)), total
+
+
+def joint_angles(model: Model) -> np.ndarray:
+    """(n_q,) bool: the joint angles of ``model`` (angle entries that are not the base's)."""
+    return np.asarray(model.is_angle) & (np.arange(model.n_q) >= model.n_base_q)
+
+
+def too_far(qs: np.ndarray, q_last: np.ndarray, joints: np.ndarray, max_rad: float) -> np.ndarray:
+    """(k,) bool: which candidates (k, n_q) move some of ``joints`` (a mask) more than ``max_rad``
+    from ``q_last``; the first (the prediction's) never is."""
+    far = np.max(np.abs(np.asarray(qs) - np.asarray(q_last))[:, joints], axis=1, initial=0.0) > max_rad
+    far[0] = False
+    return far
 
 
 def runners_up(qs: np.ndarray, total: np.ndarray, winner: int, n: int, margin: float, min_rad: float,

@@ -40,7 +40,7 @@ from ._compiled import FEATURE_FIELDS, SCALARS, FrameProgram
 from ._config import TrackConfig
 from ._flexion import flexion_hinges
 from ._frontend import AbstractFrontEnd, FrontEndDiagnostics
-from ._hypotheses import HypothesisProgram, check_proposals, choose, extra_starts, runners_up
+from ._hypotheses import HypothesisProgram, check_proposals, choose, extra_starts, joint_angles, runners_up, too_far
 from ._score import held_filter, judge_frame
 from ._support import (
     finger_of_frame,
@@ -175,6 +175,7 @@ class Tracker:
         self._flexion = flexion_hinges(model, finger_of_frame(model))
         self._moves = moved_links(model)
         self._is_angle = np.asarray(model.is_angle)
+        self._joint_angle = joint_angles(model)
 
     def _feature_arrays(self, features) -> tuple[tuple, ...]:
         """The front end's features as one tuple of :data:`FEATURE_FIELDS` arrays per camera,
@@ -225,14 +226,17 @@ class Tracker:
         rows, valid, labels = extras
         hyp = self.config.hypotheses
         rows, valid = np.asarray(rows, self._dtype), np.asarray(valid)   # jit takes NumPy arrays faster
+        gated = bool(hyp.max_step_deg) and state.confidence >= hyp.step_trust
+        max_step = float(np.radians(hyp.max_step_deg)) if gated else np.inf
         if self._choose_on_device:   # one call: the starts, the choice by merit and the commit
-            (packed, ghk_next), chosen = program.chosen(feats, ghk, rows, valid, state.q_last, terms)
+            (packed, ghk_next), chosen = program.chosen(feats, ghk, rows, valid, state.q_last, terms, max_step)
             packed, (qs, merit, winner) = jax.device_get((packed, chosen))   # one fetch; the filter state stays
             results, winner, t_score = (packed, ghk_next), int(winner), 0.0
             total = choose(merit)[1] if hyp.carry else merit
         else:
             cands = program.candidates(feats, ghk, rows, valid, terms)
             qs, merit = (np.asarray(a) for a in jax.device_get((cands.solved.q, cands.merit)))
+            merit = np.where(too_far(qs, state.q_last, self._joint_angle, max_step), -1.0, merit)
             t0 = time.perf_counter()
             winner, total = choose(merit, self._scores(images, qs, merit, fe_state))
             t_score = time.perf_counter() - t0
