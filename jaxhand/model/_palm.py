@@ -47,10 +47,8 @@ def _root_frame_poses(model: Model) -> np.ndarray:
     """T_root_frame of every frame at the default pose (numpy, no base motion or mount)."""
     from ..kinematics import base_pose, frame_poses
 
-    with jax.ensure_compile_time_eval():
-        q = model.q_default
-        T = np.asarray(frame_poses(model, q))
-        return np.linalg.inv(np.asarray(base_pose(model, q))) @ T
+    q = model.q_default
+    return np.linalg.inv(np.asarray(base_pose(model, q))) @ np.asarray(frame_poses(model, q))
 
 
 def add_palm(model: Model, *, forearm_mm: float = 100.0) -> Model:
