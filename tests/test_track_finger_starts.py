@@ -154,3 +154,8 @@ def test_the_rest_start_is_kept_but_not_valid_unless_the_frame_before_was_doubtf
         np.testing.assert_allclose(rows[0], np.asarray(m.q_default))   # hand21's base is fixed: no base entries
     with pytest.raises(jh.InputError, match=r"hypotheses\.rest_below: must lie in \[0, 1\]"):
         HypothesisConfig(rest_below=1.5)
+    # without the fingers: the thumb rests, the fingers stay at the prediction
+    keep = np.array([not n.startswith("thumb") for n in m.q_names])
+    rows = extra_starts(m, hyp, q, None, None, None, None, 0, rest_keep=keep)[0]
+    np.testing.assert_allclose(rows[0, keep], q[keep])
+    np.testing.assert_allclose(rows[0, ~keep], np.asarray(m.q_default)[~keep])

@@ -454,3 +454,11 @@ def test_a_far_candidate_cannot_win_after_a_trusted_frame(hand):
         assert tracker.step(tracker.init(bad), [None, None], 0, proposals=truth[None])[1].hypothesis == expected
     with pytest.raises(jh.InputError, match=r"hypotheses\.step_trust: must lie in \[0, 1\]"):
         HypothesisConfig(step_trust=2.0)
+
+
+def test_the_rest_start_without_the_fingers_rests_the_thumb_alone(hand):
+    m, rig, truth = hand
+    frontend = FunctionFrontEnd(lambda images, q, state, frame: features_from_pose(m, rig, truth), reextracts=False)
+    tracker = Tracker(m, rig, frontend, TrackConfig(hypotheses=HypothesisConfig(rest=True, rest_fingers=False)))
+    rested = [n for n, keep in zip(m.q_names, tracker._rest_keep) if not keep]
+    assert rested == [n for n in m.q_names if n.startswith("thumb")] and len(rested) == 5

@@ -26,6 +26,8 @@ class HypothesisConfig:
         folds: static. Starts with one hinge reflected across its fold (the one-view depth ambiguity).
         last_solve: static. Also start from the last frame's solve.
         rest: static. Also start from the model's default joint angles (the predicted base).
+        rest_fingers: host. False: the rest start rests only the digits that are not planar
+            fingers (the thumb) and keeps the fingers at the prediction.
         rest_below: host, in [0, 1]. ...only after a frame whose confidence is below this (1: after
             every frame). A start far from the motion can win by a hair where the image cannot
             tell two branches apart (a finger flexing or hyperextending towards the camera).
@@ -61,6 +63,7 @@ class HypothesisConfig:
     folds: int = 0
     last_solve: bool = False
     rest: bool = False
+    rest_fingers: bool = True
     rest_below: float = 1.0
     max_step_deg: float = 0.0
     step_trust: float = 0.5
@@ -78,7 +81,7 @@ class HypothesisConfig:
     def __post_init__(self):
         for name in ("flips", "folds", "carry", "recover", "seed", "coarse_steps"):
             count(getattr(self, name), f"hypotheses.{name}")
-        for name in ("last_solve", "rest"):
+        for name in ("last_solve", "rest", "rest_fingers"):
             flag(getattr(self, name), f"hypotheses.{name}")
         for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm", "max_step_deg"):
             value = getattr(self, name)

@@ -346,14 +346,15 @@ def check_proposals(model: Model, proposals, frame: int) -> np.ndarray:
 
 def extra_starts(model: Model, hyp: HypothesisConfig, q_pred: np.ndarray, q_solved: np.ndarray | None,
                  carried: np.ndarray | None, proposals: np.ndarray | None, q_good: np.ndarray | None, frame: int,
-                 finger: np.ndarray | None = None, rest_ok: bool = True
+                 finger: np.ndarray | None = None, rest_ok: bool = True, rest_keep: np.ndarray | None = None
                  ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     """The host's extra starts of a frame, their validity and labels: the last solve, the rest pose, the carried
     runners-up (padded to ``hyp.carry`` slots with the prediction, not valid, so the program's
     shape does not change), the proposals, the recovery starts around ``q_good`` (None: the
     frame before was not lost) and the weakest finger's bends of the prediction (``finger``: its
     flexion hinges' q entries; None: the frame before was confident). The rest start is kept
-    (not valid, so the program's shape does not change) unless ``rest_ok``."""
+    (not valid, so the program's shape does not change) unless ``rest_ok``; the entries of the
+    mask ``rest_keep`` stay at the prediction in it."""
     rows, valid, labels = [], [], []
 
     def add(qs, label, ok=True):
@@ -367,6 +368,8 @@ def extra_starts(model: Model, hyp: HypothesisConfig, q_pred: np.ndarray, q_solv
     if hyp.rest:   # the model's default joint angles, the base where the prediction has it
         rest = np.asarray(model.q_default, float).copy()
         rest[:model.n_base_q] = q_pred[:model.n_base_q]
+        if rest_keep is not None:
+            rest[rest_keep] = q_pred[rest_keep]
         add(rest, "rest", rest_ok)
     if hyp.carry:
         have = np.zeros((0, model.n_q)) if carried is None else carried[:hyp.carry]

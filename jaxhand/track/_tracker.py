@@ -172,7 +172,11 @@ class Tracker:
         nl, nt = model.n_links, model.n_tips
         self._shapes = ((nl, 3), (nl,), (nl,), (nt, 2), (nt,), (nt,))
         self._finger = finger_of_link(model)
-        self._flexion = flexion_hinges(model, finger_of_frame(model))
+        digit = finger_of_frame(model)
+        self._flexion = flexion_hinges(model, digit)
+        fingers = [f for f in range(model.n_frames) if digit[f] in self._flexion and model.q_index[f] >= model.n_base_q]
+        self._rest_keep = None if config.hypotheses.rest_fingers else np.isin(
+            np.arange(model.n_q), [model.q_index[f] for f in fingers])
         self._moves = moved_links(model)
         self._is_angle = np.asarray(model.is_angle)
         self._joint_angle = joint_angles(model)
@@ -216,7 +220,8 @@ class Tracker:
             return None
         extras = extra_starts(self.model, hyp, np.asarray(state.ghk.x), state.q_solved, state.carried, proposals,
                               state.q_last if state.lost else None, frame, self._flexion.get(state.weak_finger),
-                              rest_ok=hyp.rest_below >= 1.0 or state.confidence < hyp.rest_below)
+                              rest_ok=hyp.rest_below >= 1.0 or state.confidence < hyp.rest_below,
+                              rest_keep=self._rest_keep)
         return extras if len(extras[0]) or hyp.flips or hyp.folds else None   # recovery alone: a frame after a good one
 
     def _solve_hypotheses(self, program: HypothesisProgram, feats, ghk, state: TrackState, extras, images, fe_state,
