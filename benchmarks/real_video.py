@@ -102,10 +102,13 @@ def main() -> None:
     ap.add_argument("--forearm-mm", type=float, default=40.0,
                     help="forearm length of the learned-foreground runs' palm model (default 40: the wrist bends)")
     ap.add_argument("--scale", type=float, default=1.0, help="track the video resized by this factor (default 1)")
+    ap.add_argument("--extra", default="", help="a trial change (JSON) merged over every run's settings")
     ap.add_argument("--merge", action="store_true", help="add the runs to those of an earlier results file")
     args = ap.parse_args()
     weights = [float(w) for w in args.weights.split(",") if w]
     todo = runs(weights)
+    if args.extra:
+        todo = {k: v.merged(json.loads(args.extra)) for k, v in todo.items()}
     if args.runs:
         todo = {k: v for k, v in todo.items() if k in args.runs.split(",")}
     load0 = load_average()
