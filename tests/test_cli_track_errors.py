@@ -177,6 +177,13 @@ def test_cameras_in_the_wrong_order_are_warned_about(tmp_path):
     text = [str(w.message) for w in caught]
     assert len(text) == 2 and "camera 0: only 20% " in text[0] and "fits input 1's frame better (100%)" in text[0]
     assert "are the inputs in the order of the cameras?" in text[1]
+    # a dark hand on a lit background (a real room): the check knows dark backgrounds only
+    for name in ("a", "b"):
+        image = cv2.imread(str(tmp_path / name / "f0.png"), cv2.IMREAD_GRAYSCALE)
+        cv2.imwrite(str(tmp_path / name / "f0.png"), 255 - image)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _check_fit(model, (a, b), [FrameSource(tmp_path / "b"), FrameSource(tmp_path / "a")], model.q_default)
 
 
 # ---- runs that stop: interrupt, resume, full disk, earlier runs -----------------------------------

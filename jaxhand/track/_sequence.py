@@ -244,10 +244,20 @@ def _first_images(sources) -> list | None:
     return [f.image for f in frames]
 
 
+#: The check of the initial pose knows dark backgrounds only: the darker of Otsu's two classes must
+#: average below this grey level (the thesis's and the dev set's clean frames: 0), where the hand is
+#: the bright class. On a lit room (a real video: a grey wall, a white ceiling) it says nothing.
+DARK_BACKGROUND_GREY = 40.0
+
+
 def _fit_score(model: Model, cam, q, image: np.ndarray) -> float | None:
     """The share of points along the projected link axes that land on the image's foreground
-    (brighter than Otsu's threshold), or None when the image is flat or no point lands inside."""
+    (brighter than Otsu's threshold; 0 when no point lands inside), or None when the image is
+    flat or its background is not dark (:data:`DARK_BACKGROUND_GREY`)."""
     if image is None or image.ndim != 2 or image.dtype != np.uint8 or int(image.max()) == int(image.min()):
+        return None
+    level, _ = cv2.threshold(image, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    if float(image[image <= level].mean()) > DARK_BACKGROUND_GREY:
         return None
     pose = forward(model, q)
     f = np.linspace(0.15, 0.85, 5)[None, :, None]
@@ -257,7 +267,6 @@ def _fit_score(model: Model, cam, q, image: np.ndarray) -> float | None:
     inside = (px[:, 0] >= 0) & (px[:, 0] <= w - 1) & (px[:, 1] >= 0) & (px[:, 1] <= h - 1)
     if not inside.any():
         return 0.0
-    level, _ = cv2.threshold(image, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
     xy = np.round(px[inside]).astype(int)
     return float(np.mean(image[xy[:, 1], xy[:, 0]] > level)) * float(inside.mean())
 
