@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 from _common import REPO, RESULTS, environment, format_table, load_average, write_json
 
-from jaxhand.camera import scale_camera
+from jaxhand.camera import scale_camera, scaled_pixels
 from jaxhand.io import open_frames
 from jaxhand.landmarks import LandmarkPoses, camera_from_fov, fit_landmark_sequence, landmark_agreement, load_landmarks
 from jaxhand.landmarks import projected_landmarks as project
@@ -126,8 +126,7 @@ def main() -> None:
     rows = []
     palm_model = add_palm(model, forearm_mm=args.forearm_mm)
     cam_s = scale_camera(camera, args.scale)
-    s_px = np.array(cam_s.size) / np.array(camera.size)
-    poses_s = dataclasses.replace(poses, px=(poses.px + 0.5) * s_px - 0.5)
+    poses_s = dataclasses.replace(poses, px=scaled_pixels(poses.px, camera.size, cam_s.size))
     for name, config in todo.items():
         lm = config.landmarks
         palm = config.image.score.foreground == "sequence"

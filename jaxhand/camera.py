@@ -27,7 +27,7 @@ from jaxtyping import Array, ArrayLike, Float
 from ._errors import CameraError
 
 __all__ = ["Orthographic", "Perspective", "Camera", "as_rig", "load_camera", "save_camera", "look_at_rotation",
-           "scale_camera", "scaled_size"]
+           "scale_camera", "scaled_size", "scaled_pixels"]
 
 # Points closer to a perspective camera than this (mm) are clamped so projection stays finite.
 _MIN_DEPTH_MM = 1e-6
@@ -197,10 +197,18 @@ def scaled_size(size, factor: float) -> tuple[int, int]:
     return max(1, round(w * factor)), max(1, round(h * factor))
 
 
+def scaled_pixels(px, size, new_size) -> np.ndarray:
+    """Pixel coordinates ``px`` (..., 2) of an image of ``size`` in the image resized to
+    ``new_size`` (width, height), pixel centres at integers: ``(u + 0.5) * s - 0.5``."""
+    s = np.asarray(new_size, float) / np.asarray(size, float)
+    return (np.asarray(px, float) + 0.5) * s - 0.5
+
+
 def scale_camera(camera: Camera, factor: float) -> Camera:
     """The camera that sees the same scene in its images resized by ``factor`` (0 < factor, e.g.
     0.5 for half the width and height), pixel centres kept at integer coordinates: a pixel ``u``
-    becomes ``(u + 0.5) * s - 0.5`` with ``s`` the exact ratio of the rounded sizes per axis.
+    becomes ``(u + 0.5) * s - 0.5`` (:func:`scaled_pixels`) with ``s`` the exact ratio of the
+    rounded sizes per axis.
 
     Raises:
         CameraError: a factor that is not a finite number > 0.
@@ -215,7 +223,7 @@ def scale_camera(camera: Camera, factor: float) -> Camera:
             raise CameraError(f"scale {factor}: an orthographic camera of {w}x{h} px needs a factor that keeps "
                               "its aspect ratio in whole pixels")
         return Orthographic(R=camera.R, t=camera.t, scale=camera.scale * s.mean(),
-                            center=(np.asarray(camera.center) + 0.5) * s - 0.5, size=size)
+                            center=scaled_pixels(camera.center, camera.size, size), size=size)
     S = np.array([[s[0], 0.0, 0.5 * s[0] - 0.5], [0.0, s[1], 0.5 * s[1] - 0.5], [0.0, 0.0, 1.0]])
     return Perspective(K=S @ np.asarray(camera.K), R=camera.R, t=camera.t, size=size)
 

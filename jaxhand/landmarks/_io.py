@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import InputError
+from ..camera import scaled_pixels
 from ._convention import POINT_NAMES
 from ._residuals import Landmarks, make_landmarks
 
@@ -92,8 +93,7 @@ class LandmarkSequence:
     def resized(self, size, new_size) -> LandmarkSequence:
         """The landmarks of the video resized from ``size`` to ``new_size`` (width, height), as
         :func:`jaxhand.camera.scale_camera` resizes its camera (pixel centres at integers)."""
-        s = np.asarray(new_size, float) / np.asarray(size, float)
-        return dataclasses.replace(self, px=(self.px + 0.5) * s - 0.5,
+        return dataclasses.replace(self, px=scaled_pixels(self.px, size, new_size),
                                    image_size=(int(new_size[0]), int(new_size[1])))
 
     def to_landmarks(self, *, mirror_cx: float | None = None, mm_weight: float = 1.0) -> Landmarks:

@@ -18,7 +18,6 @@ short there.
 
 from __future__ import annotations
 
-import jax
 import numpy as np
 
 from .._errors import InputError
@@ -31,16 +30,10 @@ _ACROSS, _FROM, _SHORT, _WIDEN, _FOREARM_RADIUS = 0.63, 0.15, 0.05, 1.25, 0.4
 
 
 def _base_digit_links(model: Model) -> list[int]:
-    """Links with no link on the frames between them and the root (a digit's first bone)."""
-    carries = set(model.link_frame)
-    out = []
-    for li, f in enumerate(model.link_frame):
-        j = model.parents[f]
-        while j >= 0 and j not in carries:
-            j = model.parents[j]
-        if j < 0:
-            out.append(li)
-    return out
+    """Links with no link on the frames above them (a digit's first bone)."""
+    above = model.ancestors & ~np.eye(model.n_frames, dtype=bool)
+    carries = np.isin(np.arange(model.n_frames), model.link_frame)
+    return [li for li, f in enumerate(model.link_frame) if not (above[f] & carries).any()]
 
 
 def _root_frame_poses(model: Model) -> np.ndarray:
@@ -92,6 +85,6 @@ def add_palm(model: Model, *, forearm_mm: float = 100.0) -> Model:
         pills.append({"name": "forearm", "frame": model.frame_names[hang],
                       "start_mm": local(_SHORT * reach.mean() * distal), "end_mm": local(-forearm_mm * distal),
                       "radius_mm": float(_FOREARM_RADIUS * width)})
-    d = model_to_dict(jax.tree_util.tree_map(lambda x: np.asarray(x) if isinstance(x, jax.Array) else x, model))
+    d = model_to_dict(model)
     d["occluders"] = pills
     return model_from_dict(d, source=f"add_palm({model.name})")

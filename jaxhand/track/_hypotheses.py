@@ -223,8 +223,7 @@ def _chosen_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras
     feats, ghk = tuple(Features(*f) for f in feats), GHKState(*ghk)
     cands = candidates(model, rig, feats, ghk, extras, extra_valid, build, fit_config, numbers, passes, priors,
                        n_flips, flip_rad, n_folds, terms, coarse_steps)
-    step = jnp.max(jnp.abs(cands.solved.q - q_last)[:, joint_angles(model)], axis=1, initial=0.0)
-    merit = jnp.where((step > max_step).at[0].set(False), -1.0, cands.merit)
+    merit = jnp.where(too_far(cands.solved.q, q_last, joint_angles(model), max_step, xp=jnp), -1.0, cands.merit)
     index = jnp.argmax(merit)
     if coarse_steps:
         solved = solve_frame(model, rig, feats, ghk.x, cands.starts[index], build, fit_config, numbers, passes,
@@ -279,12 +278,12 @@ def joint_angles(model: Model) -> np.ndarray:
     return np.asarray(model.is_angle) & (np.arange(model.n_q) >= model.n_base_q)
 
 
-def too_far(qs: np.ndarray, q_last: np.ndarray, joints: np.ndarray, max_rad: float) -> np.ndarray:
+def too_far(qs, q_last, joints: np.ndarray, max_rad, xp=np):
     """(k,) bool: which candidates (k, n_q) move some of ``joints`` (a mask) more than ``max_rad``
-    from ``q_last``; the first (the prediction's) never is."""
-    far = np.max(np.abs(np.asarray(qs) - np.asarray(q_last))[:, joints], axis=1, initial=0.0) > max_rad
-    far[0] = False
-    return far
+    from ``q_last``; the first (the prediction's) never is. ``xp``: NumPy on the host,
+    ``jax.numpy`` in the compiled frame."""
+    far = xp.max(xp.abs(xp.asarray(qs) - xp.asarray(q_last))[:, joints], axis=1, initial=0.0) > max_rad
+    return far & (xp.arange(far.shape[0]) > 0)
 
 
 def runners_up(qs: np.ndarray, total: np.ndarray, winner: int, n: int, margin: float, min_rad: float,
