@@ -456,6 +456,34 @@ def test_a_far_candidate_cannot_win_after_a_trusted_frame(hand):
         HypothesisConfig(step_trust=2.0)
 
 
+def test_favour_prediction_scales_the_first_merit_that_solved():
+    from jaxhand.track._hypotheses import choose, favour_prediction
+
+    np.testing.assert_allclose(favour_prediction(np.array([0.5, 0.52, -1.0]), 0.1), [0.55, 0.52, -1.0])
+    np.testing.assert_allclose(favour_prediction(np.array([-1.0, 0.52]), 0.1), [-1.0, 0.52])   # failed: stays out
+    np.testing.assert_allclose(favour_prediction(jnp.array([0.5, 0.52]), 0.1, xp=jnp), [0.55, 0.52])
+    assert choose(np.array([0.5, 0.52]))[0] == 1
+    assert choose(np.array([0.5, 0.52]), margin=0.1)[0] == 0
+    assert choose(np.array([0.5, 0.52]), np.array([1.0, 0.5]), margin=0.1)[0] == 0   # 0.55 against 0.26
+
+
+def test_a_candidate_must_beat_the_prediction_by_the_margin(hand):
+    """The start at the truth beats the prediction's solve from near the limits; with a margin the
+    prediction's merit cannot be beaten by, the prediction wins, on the device and on the host."""
+    m, (cam,), truth = hand
+    rig = (cam, fit_camera(m, truth, R=look_at_rotation([1.0, -0.3, -0.4], [0, 0, 0])))
+    feats = features_from_pose(m, rig, truth)
+    bad = np.asarray(m.q_lower) + 0.02 * (np.asarray(m.q_upper) - np.asarray(m.q_lower))
+    frontend = FunctionFrontEnd(lambda images, q, state, frame: feats, reextracts=False)
+    for front in (frontend, _ScoredFrontEnd(feats, 0, float(truth[0]))):
+        for margin, expected in ((0.0, "proposal"), (1e6, "prediction")):
+            config = TrackConfig(reextract=0, hypotheses=HypothesisConfig(prediction_margin=margin))
+            tracker = Tracker(m, rig, front, config)
+            assert tracker.step(tracker.init(bad), [None, None], 0, proposals=truth[None])[1].hypothesis == expected
+    with pytest.raises(jh.InputError, match=r"hypotheses\.prediction_margin: expected a finite number >= 0"):
+        HypothesisConfig(prediction_margin=-0.1)
+
+
 def test_the_rest_start_without_the_fingers_rests_the_thumb_alone(hand):
     m, rig, truth = hand
     frontend = FunctionFrontEnd(lambda images, q, state, frame: features_from_pose(m, rig, truth), reextracts=False)

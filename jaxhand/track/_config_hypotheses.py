@@ -37,6 +37,10 @@ class HypothesisConfig:
             at 30 frames/s at most; a start far from the motion that wins by a hair with a 60-deg
             jump (a curling finger sent into hyperextension) is a branch change, not motion.
         step_trust: host, in [0, 1]. The confidence a frame needs for ``max_step_deg`` to hold on the next.
+        prediction_margin: host, >= 0. A candidate other than the prediction's wins only where its
+            merit beats the prediction's by more than this share (0: the best merit wins). Where
+            the image cannot tell poses apart (a thumb turning in depth), a start that wins by noise
+            moves the estimate along what the image does not see.
         carry: static. Runners-up carried to the next frame as extra starts (at most this many).
         carry_margin: host, in [0, 1]. A runner-up is carried when its merit is at least this
             share of the winner's (the score could not decide between them).
@@ -67,6 +71,7 @@ class HypothesisConfig:
     rest_below: float = 1.0
     max_step_deg: float = 0.0
     step_trust: float = 0.5
+    prediction_margin: float = 0.0
     carry: int = 0
     carry_margin: float = 0.9
     carry_min_deg: float = 5.0
@@ -83,7 +88,8 @@ class HypothesisConfig:
             count(getattr(self, name), f"hypotheses.{name}")
         for name in ("last_solve", "rest", "rest_fingers"):
             flag(getattr(self, name), f"hypotheses.{name}")
-        for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm", "max_step_deg"):
+        for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm", "max_step_deg",
+                     "prediction_margin"):
             value = getattr(self, name)
             need(finite_number(value) and value >= 0, f"hypotheses.{name}",
                  f"expected a finite number >= 0, got {value!r}")

@@ -44,7 +44,7 @@ from ._compiled import SCALARS, _Solved, _Static, features_ok, finish_frame, sol
 from ._config import HypothesisConfig, TrackConfig
 
 __all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "image_merit", "choose", "runners_up", "recovery_starts",
-           "extra_starts", "finger_starts", "too_far", "joint_angles", "LABELS"]
+           "extra_starts", "finger_starts", "too_far", "favour_prediction", "joint_angles", "LABELS"]
 
 #: The kinds of start, as :attr:`StepReport.hypothesis` names the winner's.
 LABELS = ("prediction", "flip", "fold", "last_solve", "rest", "carried", "proposal", "recover", "finger")
@@ -211,19 +211,21 @@ def _commit_jit(static: _Static, consts: tuple, cands: _Candidates, index, ghk: 
 
 @functools.partial(jax.jit, static_argnums=0)
 def _chosen_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras, extra_valid, q_last,
-                terms: tuple = (), max_step=jnp.inf):
+                terms: tuple = (), max_step=jnp.inf, margin=0.0):
     """The whole frame in one call where the merit alone chooses (no host score): the candidates,
     the winner (the first best merit, as :func:`choose` picks) and its commit; also every
     candidate's q and merit, and the winner's index. With ``coarse_steps`` the candidates are
     the coarse solves, and the winner's start is solved again in full: a frame whose coarse
     choice is the full one gives the full path's numbers. A candidate other than the prediction's
-    that moves a joint more than ``max_step`` (rad) from ``q_last`` cannot win (:func:`too_far`)."""
+    that moves a joint more than ``max_step`` (rad) from ``q_last`` cannot win (:func:`too_far`),
+    and the prediction's merit counts ``1 + margin`` times (:func:`favour_prediction`)."""
     (model, rig, build, fit_config, numbers, passes, use_filter, hold, priors, report_solve), \
         (n_flips, flip_rad, n_folds, coarse_steps) = _unpack(static, consts)
     feats, ghk = tuple(Features(*f) for f in feats), GHKState(*ghk)
     cands = candidates(model, rig, feats, ghk, extras, extra_valid, build, fit_config, numbers, passes, priors,
                        n_flips, flip_rad, n_folds, terms, coarse_steps)
     merit = jnp.where(too_far(cands.solved.q, q_last, joint_angles(model), max_step, xp=jnp), -1.0, cands.merit)
+    merit = favour_prediction(merit, margin, xp=jnp)
     index = jnp.argmax(merit)
     if coarse_steps:
         solved = solve_frame(model, rig, feats, ghk.x, cands.starts[index], build, fit_config, numbers, passes,
@@ -257,20 +259,33 @@ class HypothesisProgram:
         """``(q_solved, q_filtered, scalars), (x, v, a)`` of the chosen candidate."""
         return _commit_jit(self._static, self._consts, cands, jnp.asarray(index), ghk, q_last)
 
-    def chosen(self, feats: tuple, ghk: tuple, extras, extra_valid, q_last, terms: tuple = (), max_step=np.inf):
+    def chosen(self, feats: tuple, ghk: tuple, extras, extra_valid, q_last, terms: tuple = (), max_step=np.inf,
+               margin: float = 0.0):
         """``(packed results as commit's), (qs, merit, winner)`` of the frame in one call, the
         winner chosen by the merit alone among the candidates within ``max_step`` (rad) of
-        ``q_last`` (:func:`_chosen_jit`; device arrays)."""
+        ``q_last``, the prediction's merit favoured by ``margin`` (:func:`_chosen_jit`; device arrays)."""
+        dtype = jnp.asarray(q_last).dtype
         return _chosen_jit(self._static, self._consts, feats, ghk, extras, extra_valid, q_last, terms,
-                           jnp.asarray(max_step, jnp.asarray(q_last).dtype))
+                           jnp.asarray(max_step, dtype), jnp.asarray(margin, dtype))
 
 
-def choose(merit: np.ndarray, scores: np.ndarray | None = None) -> tuple[int, np.ndarray]:
+def choose(merit: np.ndarray, scores: np.ndarray | None = None, margin: float = 0.0) -> tuple[int, np.ndarray]:
     """The winner's index and every candidate's total merit: the residual merit times the image
-    score (when there is one); a tie goes to the earlier start (the prediction first)."""
+    score (when there is one), the prediction's favoured by ``margin`` (:func:`favour_prediction`);
+    a tie goes to the earlier start (the prediction first)."""
     total = np.asarray(merit, float) * (1.0 if scores is None else np.asarray(scores, float))
     total = np.where(np.asarray(merit) < 0, -1.0, total)   # padding slots and failed solves never win
+    total = favour_prediction(total, margin)
     return int(np.argmax(total)), total
+
+
+def favour_prediction(merit, margin, xp=np):
+    """``merit`` (k,) with the first candidate's (the prediction's) times ``1 + margin`` where it
+    solved: another start must beat it by that share to win
+    (:attr:`~jaxhand.track.HypothesisConfig.prediction_margin`). ``xp`` as :func:`too_far`'s."""
+    merit = xp.asarray(merit)
+    first = xp.arange(merit.shape[0]) == 0
+    return xp.where(first & (merit > 0), merit * (1.0 + margin), merit)
 
 
 def joint_angles(model: Model) -> np.ndarray:

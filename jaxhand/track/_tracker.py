@@ -234,16 +234,17 @@ class Tracker:
         gated = bool(hyp.max_step_deg) and state.confidence >= hyp.step_trust
         max_step = float(np.radians(hyp.max_step_deg)) if gated else np.inf
         if self._choose_on_device:   # one call: the starts, the choice by merit and the commit
-            (packed, ghk_next), chosen = program.chosen(feats, ghk, rows, valid, state.q_last, terms, max_step)
+            (packed, ghk_next), chosen = program.chosen(feats, ghk, rows, valid, state.q_last, terms, max_step,
+                                                        hyp.prediction_margin)
             packed, (qs, merit, winner) = jax.device_get((packed, chosen))   # one fetch; the filter state stays
             results, winner, t_score = (packed, ghk_next), int(winner), 0.0
-            total = choose(merit)[1] if hyp.carry else merit
+            total = choose(merit)[1] if hyp.carry else merit   # the device favoured the prediction already
         else:
             cands = program.candidates(feats, ghk, rows, valid, terms)
             qs, merit = (np.asarray(a) for a in jax.device_get((cands.solved.q, cands.merit)))
             merit = np.where(too_far(qs, state.q_last, self._joint_angle, max_step), -1.0, merit)
             t0 = time.perf_counter()
-            winner, total = choose(merit, self._scores(images, qs, merit, fe_state))
+            winner, total = choose(merit, self._scores(images, qs, merit, fe_state), hyp.prediction_margin)
             t_score = time.perf_counter() - t0
             results = program.commit(cands, winner, ghk, state.q_last)
         carried = runners_up(qs, total, winner, hyp.carry, hyp.carry_margin, float(np.radians(hyp.carry_min_deg)),
