@@ -5,6 +5,7 @@ does). Importing jaxhand changes nothing in JAX's global settings, so a program'
 code keeps its behaviour; building a model with float64 off is a one-line error saying what to do.
 """
 
+from ._compiled_cache import memory_maps, release_compiled  # noqa: E402
 from ._errors import CameraError, InputError, JaxhandError, JaxhandWarning, ModelFileError, OutputExistsError  # noqa: E402
 from ._precision import enable_single_thread_cpu, enable_sync_dispatch, enable_x64, x64_enabled  # noqa: E402
 from .camera import Orthographic, Perspective, as_rig, load_camera, save_camera  # noqa: E402
@@ -44,7 +45,7 @@ from .track import (  # noqa: E402
 __version__ = "0.1.0"
 
 __all__ = [
-    "enable_x64", "x64_enabled", "enable_sync_dispatch", "enable_single_thread_cpu",
+    "enable_x64", "x64_enabled", "enable_sync_dispatch", "enable_single_thread_cpu", "release_compiled", "memory_maps",
     "JaxhandError", "ModelFileError", "InputError", "CameraError", "OutputExistsError", "JaxhandWarning",
     "Model", "builtin_model", "builtin_names", "get_model", "load_model", "save_model", "model_from_dict",
     "model_to_dict",

@@ -23,6 +23,7 @@ import time
 import traceback
 from pathlib import Path
 
+from .._compiled_cache import release_compiled
 from .._errors import InputError
 from ._manifest import Job, Manifest
 from ._summary import write_batch_summary
@@ -102,6 +103,7 @@ def run_job(name: str, argv: list[str], job_dir: str | Path) -> dict:
             print(tb, flush=True)
             code = None
     wall_s = time.perf_counter() - t0
+    release_compiled(0.5)   # a worker that ran jobs of many shapes holds their programs' memory maps
     summary = finished_summary(job_dir) if code == 0 else None
     record = {"name": name, "status": "done" if summary is not None else "failed", "exit_code": code,
               "error": None, "wall_s": wall_s, "jit_compiles": _compiles["count"] - n0,
