@@ -12,6 +12,7 @@
 - the config section round-trips and rejects bad values; the host rules (choose, runners-up).
 """
 
+import dataclasses
 from pathlib import Path
 
 import cv2
@@ -480,6 +481,8 @@ def test_a_candidate_must_beat_the_prediction_by_the_margin(hand):
             config = TrackConfig(reextract=0, hypotheses=HypothesisConfig(prediction_margin=margin))
             tracker = Tracker(m, rig, front, config)
             assert tracker.step(tracker.init(bad), [None, None], 0, proposals=truth[None])[1].hypothesis == expected
+        doubtful = dataclasses.replace(tracker.init(bad), confidence=0.2)   # under step_trust: no margin
+        assert tracker.step(doubtful, [None, None], 0, proposals=truth[None])[1].hypothesis == "proposal"
     with pytest.raises(jh.InputError, match=r"hypotheses\.prediction_margin: expected a finite number >= 0"):
         HypothesisConfig(prediction_margin=-0.1)
 

@@ -36,9 +36,11 @@ class HypothesisConfig:
             unless it is the prediction's (0: no limit). A hand's joints move some 25 deg per frame
             at 30 frames/s at most; a start far from the motion that wins by a hair with a 60-deg
             jump (a curling finger sent into hyperextension) is a branch change, not motion.
-        step_trust: host, in [0, 1]. The confidence a frame needs for ``max_step_deg`` to hold on the next.
-        prediction_margin: host, >= 0. A candidate other than the prediction's wins only where its
-            merit beats the prediction's by more than this share (0: the best merit wins). Where
+        step_trust: host, in [0, 1]. The confidence a frame needs for ``max_step_deg`` and
+            ``prediction_margin`` to hold on the next.
+        prediction_margin: host, >= 0. After a frame whose confidence reached ``step_trust``, a
+            candidate other than the prediction's wins only where its merit beats the
+            prediction's by more than this share (0: the best merit wins). Where
             the image cannot tell poses apart (a thumb turning in depth), a start that wins by noise
             moves the estimate along what the image does not see.
         carry: static. Runners-up carried to the next frame as extra starts (at most this many).

@@ -231,11 +231,12 @@ class Tracker:
         rows, valid, labels = extras
         hyp = self.config.hypotheses
         rows, valid = np.asarray(rows, self._dtype), np.asarray(valid)   # jit takes NumPy arrays faster
-        gated = bool(hyp.max_step_deg) and state.confidence >= hyp.step_trust
-        max_step = float(np.radians(hyp.max_step_deg)) if gated else np.inf
+        trusted = state.confidence >= hyp.step_trust   # the last frame's estimate may hold this one back
+        max_step = float(np.radians(hyp.max_step_deg)) if trusted and hyp.max_step_deg else np.inf
+        margin = hyp.prediction_margin if trusted else 0.0
         if self._choose_on_device:   # one call: the starts, the choice by merit and the commit
             (packed, ghk_next), chosen = program.chosen(feats, ghk, rows, valid, state.q_last, terms, max_step,
-                                                        hyp.prediction_margin)
+                                                        margin)
             packed, (qs, merit, winner) = jax.device_get((packed, chosen))   # one fetch; the filter state stays
             results, winner, t_score = (packed, ghk_next), int(winner), 0.0
             total = choose(merit)[1] if hyp.carry else merit   # the device favoured the prediction already
@@ -244,7 +245,7 @@ class Tracker:
             qs, merit = (np.asarray(a) for a in jax.device_get((cands.solved.q, cands.merit)))
             merit = np.where(too_far(qs, state.q_last, self._joint_angle, max_step), -1.0, merit)
             t0 = time.perf_counter()
-            winner, total = choose(merit, self._scores(images, qs, merit, fe_state), hyp.prediction_margin)
+            winner, total = choose(merit, self._scores(images, qs, merit, fe_state), margin)
             t_score = time.perf_counter() - t0
             results = program.commit(cands, winner, ghk, state.q_last)
         carried = runners_up(qs, total, winner, hyp.carry, hyp.carry_margin, float(np.radians(hyp.carry_min_deg)),
