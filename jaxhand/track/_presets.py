@@ -23,6 +23,9 @@ __all__ = ["PRESETS"]
 #: 0.5 the joints the image did not show restarted from the last trusted pose
 #: (``prior.restore_hidden_below``): its loss flag means more, and it holds a thumb from starts a
 #: little off, at some accuracy on fast or occluding motion (benchmarks/README.md, 2026-12-04).
+#: After a trusted frame another start must beat the prediction's merit by 5 % to win
+#: (``hypotheses.prediction_margin``): a start that won by noise moved a joint the image
+#: hardly sees (benchmarks/README.md, 2026-12-05, third session).
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -46,4 +49,5 @@ PRESETS: dict[str, dict] = {
 PRESETS["robust-temporal"] = {**PRESETS["robust-limits"],
                               "prior": {**PRESETS["robust-limits"]["prior"], "temporal_sigma_deg": 15.0,
                                         "temporal_sigma_mm": 10.0, "information_ratio": 1.0, "temporal_merit": 0.1,
-                                        "restore_hidden_below": 0.5}}
+                                        "restore_hidden_below": 0.5},
+                              "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "prediction_margin": 0.05}}
