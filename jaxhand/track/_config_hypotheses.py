@@ -39,10 +39,10 @@ class HypothesisConfig:
         step_trust: host, in [0, 1]. The confidence a frame needs for ``max_step_deg`` and
             ``prediction_margin`` to hold on the next.
         prediction_margin: host, >= 0. After a frame whose confidence reached ``step_trust``, a
-            candidate other than the prediction's wins only where its merit beats the
-            prediction's by more than this share (0: the best merit wins). Where
-            the image cannot tell poses apart (a thumb turning in depth), a start that wins by noise
-            moves the estimate along what the image does not see.
+            candidate other than the prediction's wins only where its merit beats the prediction's
+            by more than this share (0: the best merit wins). Where the image cannot tell poses
+            apart (a thumb turning in depth), a start that wins by noise moves the estimate along
+            what the image does not see.
         carry: static. Runners-up carried to the next frame as extra starts (at most this many).
         carry_margin: host, in [0, 1]. A runner-up is carried when its merit is at least this
             share of the winner's (the score could not decide between them).
