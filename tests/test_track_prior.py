@@ -308,3 +308,42 @@ def test_after_a_doubtful_frame_hidden_joints_restart_from_the_trusted_pose(prob
     low_state, low_report = Tracker(m, seq.cameras, low, config, dt_s=dt).step(doubtful, [None], 3)
     assert low_report.confidence < 0.5
     np.testing.assert_array_equal(low_state.q_trusted, trusted)
+
+
+def test_a_joint_long_unmeasured_starts_from_its_last_measured_value(problem):
+    """``prior.hold_unseen_frames``: index_dip's line goes missing from frame 2; after two frames
+    without it the DIP is predicted at its estimate of frame 1, still; the other joints as before."""
+    import equinox as eqx
+
+    seq, feats = problem
+    m = seq.model
+    link = m.link_names.index("index_dip")
+    dip = m.q_lookup("index_dip")
+
+    def without_dip(frame):
+        if frame < 2:
+            return feats[frame]
+        return tuple(eqx.tree_at(lambda f: f.line_valid, f, f.line_valid.at[link].set(False)) for f in feats[frame])
+
+    front = FunctionFrontEnd(lambda images, q, s, frame: without_dip(frame))
+    config = TrackConfig(reextract=0, filter=FilterConfig(report_solve=True)).merged(
+        {"prior": {"hold_unseen_frames": 2}})
+    tracker = Tracker(m, seq.cameras, front, config, dt_s=float(seq.times_s[1] - seq.times_s[0]))
+    state = tracker.init(seq.q[0])
+    counts = []
+    for k in range(4):
+        state, report = tracker.step(state, [None], k)
+        counts.append(int(state.unseen[dip]))
+        if k == 1:
+            seen_dip = report.q_filtered[dip]
+    assert counts == [0, 0, 1, 2]
+    assert state.unseen.sum() == 2   # the DIP alone moves nothing but index_dip's link
+    assert state.q_seen[dip] == seen_dip
+    pred = np.asarray(state.ghk.x)
+    after = tracker.step(state, [None], 4)[1].q_pred
+    assert after[dip] == seen_dip
+    others = np.arange(m.n_q) != dip
+    np.testing.assert_allclose(after[others], pred[others], rtol=0, atol=1e-12)
+    assert abs(pred[dip] - seen_dip) > 1e-6   # sanity: the hold moved it
+    with pytest.raises(jh.InputError, match=r"prior\.hold_unseen_frames: expected a finite number >= 0"):
+        PriorConfig(hold_unseen_frames=-1)

@@ -184,6 +184,11 @@ class PriorConfig:
             whose confidence reached it): a doubtful frame's solve may move a hidden finger where
             the image cannot correct it, and a temporal prior would then hold it there (0: off;
             needs ``support.enabled``).
+        hold_unseen_frames: host, frames. A joint none of whose links has had a feature line (in
+            any camera) for this many frames in a row starts each frame, still, from its value on
+            the last frame that measured one (0: off). Such a joint follows only the silhouette
+            term and the priors, and drifts: a finger hidden behind the thumb curled on to its
+            soft limit.
         dip_pip_weight: traced, 1/rad. DIP-PIP coupling, ``w (q_dip - 2/3 q_pip)`` per finger (0: none).
         soft_limit_weight: traced, 1/rad. Soft joint limits beyond ``soft_limit_margin_deg`` (0: none).
         soft_limit_margin_deg: traced, deg. Where each soft limit starts, past its hard limit (the
@@ -201,6 +206,7 @@ class PriorConfig:
     temporal_merit: float | None = 0.0
     temporal_min_confidence: float | None = 0.0
     restore_hidden_below: float | None = 0.0
+    hold_unseen_frames: float | None = 0.0
     dip_pip_weight: float | None = 0.0
     soft_limit_weight: float | None = 0.0
     soft_limit_margin_deg: float | None = 0.0

@@ -76,6 +76,9 @@ class TrackState:
             :attr:`PriorConfig.restore_hidden_below` (the initial pose before one did).
         hidden: the q entries the image did not show on the last frame (they move no link the
             front end's support judged; empty when it was not measured).
+        unseen: per q entry, the frames in a row none of whose links had a feature line (None
+            unless :attr:`PriorConfig.hold_unseen_frames`).
+        q_seen: per q entry, its estimate on the last frame that measured one of its links.
     """
 
     ghk: GHKState
@@ -89,6 +92,8 @@ class TrackState:
     confidence: float = 1.0
     q_trusted: np.ndarray | None = None
     hidden: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
+    unseen: np.ndarray | None = None
+    q_seen: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -311,7 +316,10 @@ class Tracker:
         if len(images) != len(self.cameras):
             raise InputError(f"expected one image per camera ({len(self.cameras)}), got {len(images)}")
         if state.confidence < self.config.prior.restore_hidden_below and len(state.hidden):
-            state = self._restore_hidden(state)
+            state = self._restore(state, np.asarray(state.hidden, int), state.q_trusted)
+        hold = self.config.prior.hold_unseen_frames
+        if hold and state.unseen is not None:
+            state = self._restore(state, np.flatnonzero(state.unseen >= hold), state.q_seen)
         q_pred = state.ghk.x
         ghk = (state.ghk.x, state.ghk.v, state.ghk.a)
         t_features = t_solve = 0.0
@@ -375,17 +383,31 @@ class Tracker:
                             timings_s=timings, diagnostics=diag, image_score=image_score, hypothesis=picked.label,
                             starts=picked.starts, reinitialised=state.lost and not lost)
         ghk_next = jax.tree_util.tree_unflatten(self._ghk_tree, ghk_next)
+        unseen, q_seen = self._unseen(state, extracted.features, filtered) if hold and not lost else (
+            state.unseen, state.q_seen)
         return TrackState(ghk=ghk_next, frontend_state=fe_state, q_last=filtered, score_reference=reference,
                           q_solved=q_meas, carried=picked.carried, lost=lost, weak_finger=weak,
                           confidence=confidence, hidden=hidden,
                           q_trusted=filtered if confidence >= self.config.prior.restore_hidden_below
-                          else state.q_trusted), report
+                          else state.q_trusted, unseen=unseen, q_seen=q_seen), report
 
-    def _restore_hidden(self, state: TrackState) -> TrackState:
-        """``state`` with the filter's hidden entries back at the last trusted pose, still
-        (:attr:`PriorConfig.restore_hidden_below`): a doubtful frame's solve may have moved them
-        where the image cannot correct them."""
-        idx = np.asarray(state.hidden, int)
-        x = state.ghk.x.at[idx].set(jnp.asarray(state.q_trusted)[idx])
+    def _unseen(self, state: TrackState, features, q) -> tuple[np.ndarray, np.ndarray]:
+        """Per q entry, the frames in a row none of whose moved links had a feature line, and its
+        value on the last frame one did (``q`` where this frame measured it)
+        (:attr:`PriorConfig.hold_unseen_frames`); entries that move no link never count."""
+        lined = np.any([np.asarray(f.line_valid, bool) for f in features], axis=0)
+        seen = (self._moves & lined[None, :]).any(1) | ~self._moves.any(1)
+        before = np.zeros(len(seen), int) if state.unseen is None else state.unseen
+        q_seen = np.asarray(q) if state.q_seen is None else np.where(seen, q, state.q_seen)
+        return np.where(seen, 0, before + 1), q_seen
+
+    def _restore(self, state: TrackState, idx: np.ndarray, q_ref) -> TrackState:
+        """``state`` with the filter's entries ``idx`` back at ``q_ref``, still: the hidden ones at
+        the last trusted pose after a doubtful frame (:attr:`PriorConfig.restore_hidden_below`), whose
+        solve may have moved them where the image cannot correct them, and those long unmeasured at
+        their last measured value (:attr:`PriorConfig.hold_unseen_frames`)."""
+        if not len(idx):
+            return state
+        x = state.ghk.x.at[idx].set(jnp.asarray(q_ref)[idx])
         ghk = GHKState(x=x, v=state.ghk.v.at[idx].set(0.0), a=state.ghk.a.at[idx].set(0.0))
         return dataclasses.replace(state, ghk=ghk)
