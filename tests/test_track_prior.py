@@ -347,3 +347,42 @@ def test_a_joint_long_unmeasured_starts_from_its_last_measured_value(problem):
     assert abs(pred[dip] - seen_dip) > 1e-6   # sanity: the hold moved it
     with pytest.raises(jh.InputError, match=r"prior\.hold_unseen_frames: expected a finite number >= 0"):
         PriorConfig(hold_unseen_frames=-1)
+
+
+def test_thumb_rest_prior_pulls_the_thumb_alone_towards_rest_where_the_image_does_not_see():
+    """``prior.thumb_rest_sigma_deg``: a second information-weighted prior, around the default
+    pose, on the joints of the finger that is not planar (a thumb) and on nothing else."""
+    import equinox as eqx
+
+    from jaxhand.track._flexion import thumb_joints
+
+    hand = jh.builtin_model("hand21")
+    assert [hand.q_names[i] for i in thumb_joints(hand)] == ["thumb_cmc_pa", "thumb_cmc_ra", "thumb_mcp_ab",
+                                                             "thumb_mcp", "thumb_ip"]
+    assert len(thumb_joints(jh.builtin_model("two_fingers"))) == 0
+    seq = make_preset("full_hand_spread_flex", frames=2, size=(160, 120))
+    m, rig, fractions = seq.model, seq.cameras, jh.FitConfig().link_fractions
+    priors = _Priors.of(m, PriorConfig(temporal_sigma_deg=15.0, information_ratio=1.0, thumb_rest_sigma_deg=20.0))
+    rest_pose = np.asarray(m.q_default)
+    thumb, pip = m.q_lookup("thumb_mcp"), m.q_lookup("index_pip")
+    d_thumb = np.zeros(m.n_q)
+    d_thumb[thumb] = np.radians(10.0)
+    d_pip = np.zeros(m.n_q)
+    d_pip[pip] = np.radians(10.0)
+    seen = tuple(features_from_pose(m, rig, jnp.asarray(seq.q[0])))
+    unseen = tuple(eqx.tree_at(lambda f: (f.line_valid, f.tip_valid), f,
+                               (jnp.zeros_like(f.line_valid), jnp.zeros_like(f.tip_valid))) for f in seen)
+    q = jnp.asarray(seq.q[0])
+    _, rest_unseen = priors.at(m, rig, unseen, q, q, fractions)[:2]
+    _, rest_seen = priors.at(m, rig, seen, q, q, fractions)[:2]
+    np.testing.assert_array_equal(np.asarray(rest_unseen.q_pred), rest_pose)
+    # nothing seen: the full prior, 10 deg off at sigma 20 is a residual of 0.5 on the thumb's MCP alone
+    r = np.asarray(rest_unseen(jnp.asarray(rest_pose + d_thumb)))
+    assert r[thumb] == pytest.approx(0.5, rel=1e-9) and np.abs(np.delete(r, thumb)).max() < 1e-12
+    # a finger's joint is never held, seen or not
+    for rest in (rest_unseen, rest_seen):
+        assert np.abs(np.asarray(rest(jnp.asarray(rest_pose + d_pip)))).max() < 1e-12
+    # seen, the thumb is held less
+    assert np.linalg.norm(np.asarray(rest_seen(jnp.asarray(rest_pose + d_thumb)))) < 0.5
+    with pytest.raises(jh.InputError, match=r"prior\.thumb_rest_sigma_deg: is information-weighted"):
+        PriorConfig(temporal_sigma_deg=15.0, thumb_rest_sigma_deg=20.0)

@@ -34,7 +34,7 @@ from ..priors import TemporalPrior, dip_pip_coupling, information_weight, soft_l
 from ..residuals import ResidualArgs, feature_distances, residuals_and_jacobian
 from ..solve.internal import fit_traced, solver_program
 from ._config import TrackConfig
-from ._flexion import hyperextension_limits
+from ._flexion import hyperextension_limits, thumb_joints
 from ._score import frame_score
 
 __all__ = ["FrameProgram", "frame_step", "solve_frame", "seen_at", "finish_frame", "step_constants", "robust_solve",
@@ -100,13 +100,16 @@ class _StepNumbers(eqx.Module):
 
 class _Priors(eqx.Module):
     """The priors of :class:`~jaxhand.track.PriorConfig`, built once: the fixed ones (DIP-PIP,
-    soft limits) and the temporal prior's per-entry weight (its ``q_pred`` is the frame's
-    prediction). Which are present is static; their numbers are traced."""
+    soft limits), the temporal prior's per-entry weight (its ``q_pred`` is the frame's
+    prediction) and the thumb's rest prior's (around the default pose). Which are present is
+    static; their numbers are traced."""
 
     fixed: tuple
     temporal_weight: Float[Array, " nq"] | None
     information_ratio: Float[Array, ""] | None
     temporal_merit: Float[Array, ""] | None = None
+    rest_weight: Float[Array, " nq"] | None = None
+    rest_pose: Float[Array, " nq"] | None = None
 
     @staticmethod
     def of(model: Model, config) -> _Priors:
@@ -123,7 +126,13 @@ class _Priors(eqx.Module):
                   if config.temporal else None)
         ratio = jnp.asarray(config.information_ratio, dtype) if config.information_ratio else None
         merit = jnp.asarray(config.temporal_merit, dtype) if config.temporal_merit else None
-        return _Priors(fixed=tuple(fixed), temporal_weight=weight, information_ratio=ratio, temporal_merit=merit)
+        rest = None
+        if config.thumb_rest_sigma_deg:
+            rest = np.zeros(model.n_q)
+            rest[thumb_joints(model)] = 1.0 / np.radians(config.thumb_rest_sigma_deg)
+            rest = jnp.asarray(rest, dtype)
+        return _Priors(fixed=tuple(fixed), temporal_weight=weight, information_ratio=ratio, temporal_merit=merit,
+                       rest_weight=rest, rest_pose=None if rest is None else jnp.asarray(model.q_default, dtype))
 
     def without_temporal(self) -> _Priors:
         """These priors with the temporal weight zeroed (its residuals and merit vanish): the same
@@ -140,13 +149,15 @@ class _Priors(eqx.Module):
         return self.temporal_merit * jnp.sum((self.temporal_weight * (q - q_pred)) ** 2)
 
     def at(self, model: Model, rig: tuple, feats: tuple, q_pred, q_start, fractions, measured: tuple = ()) -> tuple:
-        """The priors of one frame: the temporal prior around ``q_pred``, information-weighted by
-        the features (with the front end's weights) and the frame's ``measured`` terms (bound
-        priors of image measurements, e.g. the silhouette) at ``q_start`` when
-        :attr:`information_ratio` is set: what a term sees (a finger's length) is the image's to say."""
-        if self.temporal_weight is None:
+        """The priors of one frame: the temporal prior around ``q_pred`` and the thumb's rest
+        prior, each information-weighted by the features (with the front end's weights) and the
+        frame's ``measured`` terms (bound priors of image measurements, e.g. the silhouette) at
+        ``q_start`` when :attr:`information_ratio` is set: what a term sees (a finger's length)
+        is the image's to say."""
+        weighted = [(self.temporal_weight, q_pred), (self.rest_weight, self.rest_pose)]
+        weighted = [(w, centre) for w, centre in weighted if w is not None]
+        if not weighted:
             return self.fixed
-        weight = self.temporal_weight
         if self.information_ratio is not None:
             args = ResidualArgs(model=model, cameras=rig, features=feats, fractions=fractions)
             _, J = residuals_and_jacobian(q_start, args)
@@ -154,8 +165,8 @@ class _Priors(eqx.Module):
             for term in measured:
                 J_term = jax.jacfwd(term)(q_start)
                 information = information + J_term.T @ J_term
-            weight = information_weight(weight, information, self.information_ratio)
-        return (TemporalPrior(q_pred=q_pred, weight=weight),) + self.fixed
+            weighted = [(information_weight(w, information, self.information_ratio), centre) for w, centre in weighted]
+        return tuple(TemporalPrior(q_pred=centre, weight=w) for w, centre in weighted) + self.fixed
 
 
 class _StepOut(eqx.Module):

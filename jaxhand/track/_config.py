@@ -189,6 +189,13 @@ class PriorConfig:
             the last frame that measured one (0: off). Such a joint follows only the silhouette
             term and the priors, and drifts: a finger hidden behind the thumb curled on to its
             soft limit.
+        thumb_rest_sigma_deg: traced, deg. A Gaussian prior of this sigma on the thumb's joints (those
+            of every finger that is not planar: :func:`~jaxhand.track._flexion.thumb_joints`)
+            towards the model's default pose, information-weighted as the temporal prior (needs
+            ``information_ratio``): five hinges seen as two lines and a tip leave one camera a
+            direction it hardly sees, along which sub-pixel biases carry the thumb 15-20 deg off
+            while the temporal prior only slows them (0: none). Not for the planar fingers: it
+            would hold a finger that curls towards the camera straight.
         dip_pip_weight: traced, 1/rad. DIP-PIP coupling, ``w (q_dip - 2/3 q_pip)`` per finger (0: none).
         soft_limit_weight: traced, 1/rad. Soft joint limits beyond ``soft_limit_margin_deg`` (0: none).
         soft_limit_margin_deg: traced, deg. Where each soft limit starts, past its hard limit (the
@@ -207,6 +214,7 @@ class PriorConfig:
     temporal_min_confidence: float | None = 0.0
     restore_hidden_below: float | None = 0.0
     hold_unseen_frames: float | None = 0.0
+    thumb_rest_sigma_deg: float | None = 0.0
     dip_pip_weight: float | None = 0.0
     soft_limit_weight: float | None = 0.0
     soft_limit_margin_deg: float | None = 0.0
@@ -221,6 +229,8 @@ class PriorConfig:
             object.__setattr__(self, f.name, float(value))
         need(not self.information_ratio or bool(self.temporal_sigma_deg or self.temporal_sigma_mm),
               "prior.information_ratio", "weighs the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
+        need(not self.thumb_rest_sigma_deg or bool(self.information_ratio), "prior.thumb_rest_sigma_deg",
+             "is information-weighted: set information_ratio (and a temporal prior)")
         need(not self.temporal_merit or self.temporal,
              "prior.temporal_merit", "counts the temporal prior: set temporal_sigma_deg or temporal_sigma_mm")
         need(self.temporal_min_confidence <= 1.0, "prior.temporal_min_confidence",

@@ -10,7 +10,7 @@ from ..model import Model
 from ..priors import SoftLimits
 from ._support import finger_of_frame
 
-__all__ = ["flexion_hinges", "hyperextension_limits"]
+__all__ = ["flexion_hinges", "hyperextension_limits", "thumb_joints"]
 
 
 def flexion_hinges(model: Model, finger_of_frame: np.ndarray) -> dict[int, np.ndarray]:
@@ -29,6 +29,16 @@ def flexion_hinges(model: Model, finger_of_frame: np.ndarray) -> dict[int, np.nd
         if flexion and len(own) - len(flexion) <= 1:
             out[int(g)] = np.array([model.q_index[f] for f in flexion], int)
     return out
+
+
+def thumb_joints(model: Model) -> np.ndarray:
+    """The q entries of the revolute joints of every finger that is not planar
+    (:func:`flexion_hinges`): a hand's thumb."""
+    fingers = finger_of_frame(model)
+    planar = flexion_hinges(model, fingers)
+    return np.array(sorted(model.q_index[f] for f in range(len(model.parents))
+                           if model.joint_kinds[f] == "revolute" and model.q_index[f] >= model.n_base_q
+                           and fingers[f] >= 0 and int(fingers[f]) not in planar), int)
 
 
 def hyperextension_limits(model: Model, weight: float, start_deg: float) -> SoftLimits:
