@@ -43,7 +43,8 @@ def register(sub) -> None:
                    help="named settings on top of --config or the defaults: 'robust' for images jaxhand did not "
                         "draw (the silhouette term, six starts per frame; slower), 'robust-limits' the same with "
                         "soft limits inside the joint ranges and the weakest finger restarted after a doubtful "
-                        "frame, 'robust-temporal' that with a temporal prior (a loss flag that means more), "
+                        "frame, 'robust-temporal' that with a temporal prior and the thumb held towards rest where one "
+                        "camera cannot see it (a loss flag that means more), "
                         "'coupled' the DIP-PIP coupling alone (no drift on "
                         "long slow runs), 'thesis' the documents' tracker (default: thesis)")
     defaults = TrackConfig()   # --help shows the defaults of the config itself

@@ -25,7 +25,10 @@ __all__ = ["PRESETS"]
 #: little off, at some accuracy on fast or occluding motion (benchmarks/README.md, 2026-12-04).
 #: After a trusted frame another start must beat the prediction's merit by 5 % to win
 #: (``hypotheses.prediction_margin``): a start that won by noise moved a joint the image
-#: hardly sees (benchmarks/README.md, 2026-12-05, third session).
+#: hardly sees (benchmarks/README.md, 2026-12-05, third session). The thumb's joints carry an
+#: information-weighted prior of 20 deg towards the default pose (``prior.thumb_rest_sigma_deg``):
+#: one camera hardly sees a thumb's depth, and sub-pixel biases had carried it 15-20 deg off
+#: (benchmarks/README.md, 2026-12-05, fourth session).
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -49,5 +52,5 @@ PRESETS: dict[str, dict] = {
 PRESETS["robust-temporal"] = {**PRESETS["robust-limits"],
                               "prior": {**PRESETS["robust-limits"]["prior"], "temporal_sigma_deg": 15.0,
                                         "temporal_sigma_mm": 10.0, "information_ratio": 1.0, "temporal_merit": 0.1,
-                                        "restore_hidden_below": 0.5},
+                                        "restore_hidden_below": 0.5, "thumb_rest_sigma_deg": 20.0},
                               "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "prediction_margin": 0.05}}
