@@ -386,3 +386,7 @@ def test_thumb_rest_prior_pulls_the_thumb_alone_towards_rest_where_the_image_doe
     assert np.linalg.norm(np.asarray(rest_seen(jnp.asarray(rest_pose + d_thumb)))) < 0.5
     with pytest.raises(jh.InputError, match=r"prior\.thumb_rest_sigma_deg: is information-weighted"):
         PriorConfig(temporal_sigma_deg=15.0, thumb_rest_sigma_deg=20.0)
+    # a model without a thumb gets no rest prior at all
+    two = _Priors.of(jh.builtin_model("two_fingers"), PriorConfig(temporal_sigma_deg=15.0, information_ratio=1.0,
+                                                                  thumb_rest_sigma_deg=20.0))
+    assert two.rest_weight is None and two.rest_pose is None

@@ -126,10 +126,10 @@ class _Priors(eqx.Module):
                   if config.temporal else None)
         ratio = jnp.asarray(config.information_ratio, dtype) if config.information_ratio else None
         merit = jnp.asarray(config.temporal_merit, dtype) if config.temporal_merit else None
-        rest = None
-        if config.thumb_rest_sigma_deg:
+        rest, thumb = None, thumb_joints(model) if config.thumb_rest_sigma_deg else ()
+        if len(thumb):   # a model without a thumb gets none
             rest = np.zeros(model.n_q)
-            rest[thumb_joints(model)] = 1.0 / np.radians(config.thumb_rest_sigma_deg)
+            rest[thumb] = 1.0 / np.radians(config.thumb_rest_sigma_deg)
             rest = jnp.asarray(rest, dtype)
         return _Priors(fixed=tuple(fixed), temporal_weight=weight, information_ratio=ratio, temporal_merit=merit,
                        rest_weight=rest, rest_pose=None if rest is None else jnp.asarray(model.q_default, dtype))

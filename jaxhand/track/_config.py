@@ -193,7 +193,7 @@ class PriorConfig:
             of every finger that is not planar: :func:`~jaxhand.track._flexion.thumb_joints`)
             towards the model's default pose, information-weighted as the temporal prior (needs
             ``information_ratio``): five hinges seen as two lines and a tip leave one camera a
-            direction it hardly sees, along which sub-pixel biases carry the thumb 15-20 deg off
+            direction it hardly sees, along which small feature biases carry the thumb far off
             while the temporal prior only slows them (0: none). Not for the planar fingers: it
             would hold a finger that curls towards the camera straight.
         dip_pip_weight: traced, 1/rad. DIP-PIP coupling, ``w (q_dip - 2/3 q_pip)`` per finger (0: none).

@@ -27,7 +27,7 @@ __all__ = ["PRESETS"]
 #: (``hypotheses.prediction_margin``): a start that won by noise moved a joint the image
 #: hardly sees (benchmarks/README.md, 2026-12-05, third session). The thumb's joints carry an
 #: information-weighted prior of 20 deg towards the default pose (``prior.thumb_rest_sigma_deg``):
-#: one camera hardly sees a thumb's depth, and sub-pixel biases had carried it 15-20 deg off
+#: one camera hardly sees a thumb's depth, and small feature biases had carried it far off
 #: (benchmarks/README.md, 2026-12-05, fourth session).
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
