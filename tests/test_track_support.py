@@ -12,7 +12,7 @@ import pytest
 from jaxhand import InputError
 from jaxhand.io import load_devset
 from jaxhand.render import make_preset
-from jaxhand.score import ScoreSection, foreground_for, score_frame
+from jaxhand.score import ScoreConfig, ScoreSection, foreground_for, score_frame, side_edge_share
 from jaxhand.track import (
     AbstractFrontEnd,
     ExactFrontEnd,
@@ -127,6 +127,33 @@ def test_a_finger_bent_inside_the_foreground_loses_the_confidence(opposition):
     assert np.nanargmin(scores[0]) in np.flatnonzero(finger == finger[m.link_names.index("index_proximal")])
     foreground = foreground_for(ScoreSection(foreground="auto"), image)
     assert score_frame(m, seq.truth.cameras[0], bent, image, foreground).coverage > 0.99
+
+
+def test_a_link_off_its_own_edges_loses_its_side_share_and_with_it_its_support(opposition):
+    """thumb_opposition frame 20: at the true pose every link finds an edge across nearly all its
+    visible side points; with the index bent 15 deg at its knuckle its middle and distal phalanges,
+    lying over the hand, find few (the hand's edges near them run the wrong way). With
+    ``side_edge_px`` the front end's link support is capped by that share."""
+    seq, m = opposition, opposition.model
+    image = cv2.imread(str(seq.image_paths[0][20]), cv2.IMREAD_GRAYSCALE)
+    q = np.array(seq.truth.q[20])
+    bent = q.copy()
+    bent[m.q_names.index("index_mcp_flex")] += np.radians(15)
+    sides = ScoreConfig(side_edge_px=2.0)
+    at_true, at_bent = (side_edge_share(image, m, seq.truth.cameras[0], x, sides) for x in (q, bent))
+    assert np.nanmin(at_true) >= 0.9
+    index = [m.link_names.index(n) for n in ("index_middle", "index_distal")]
+    assert np.all(at_bent[index] <= 0.45)
+    config = TrackConfig().preset("robust")
+    off = ImageFrontEnd(m, seq.truth.cameras, config.image).support([image], bent, None).link_score[0]
+    with_sides = config.merged({"image": {"score": {"silhouette": {"side_edge_px": 2.0}}}}).image
+    on = ImageFrontEnd(m, seq.truth.cameras, with_sides).support([image], bent, None).link_score[0]
+    np.testing.assert_allclose(on, np.where(np.isfinite(at_bent), np.minimum(off, at_bent), off))
+    assert np.all(off[index] > 0.6)   # sanity: the silhouette score alone keeps them
+    with pytest.raises(InputError, match="ScoreConfig.side_edge_px, side_edge_gradient: need >= 0 and > 0"):
+        ScoreConfig(side_edge_px=-1.0)
+    with pytest.raises(InputError, match="ScoreConfig.side_fractions: need at least one fraction in"):
+        ScoreConfig(side_fractions=(0.5, 1.5))
 
 
 class _Supported(AbstractFrontEnd):

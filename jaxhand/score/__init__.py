@@ -16,6 +16,8 @@ judge (here). The tracker, once per frame:
   :class:`SequenceBackground` (a still camera's background learned while tracking) and
   :class:`SkinForeground` (colour video).
 - :class:`ScoreConfig`, :class:`ImageScore`, :func:`score_frame`: IoU, coverage and chamfer in [0, 1].
+- :func:`side_edge_share`, :func:`link_sides`: each link's share of visible side points with an
+  image edge across the side (a finger lying wrongly over the hand finds few).
 - :class:`SilhouetteTermConfig`, :class:`SilhouetteTerm`, :func:`silhouette_term`: the silhouette
   as residuals of the solve (``ImageConfig.silhouette_term``), and as a judge of hypotheses.
 - :class:`ConfidenceConfig`, :func:`frame_confidence`: the loss rule.
@@ -44,6 +46,8 @@ from ._section import foreground_for as foreground_for
 from ._section import sequence_foreground as sequence_foreground
 from ._sequence import SequenceBackground as SequenceBackground
 from ._sequence import fill_holes as fill_holes
+from ._sides import link_sides as link_sides
+from ._sides import side_edge_share as side_edge_share
 from ._silhouette import CameraNumbers as CameraNumbers
 from ._silhouette import Capsules as Capsules
 from ._silhouette import Silhouette as Silhouette
@@ -66,4 +70,4 @@ __all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsule
            "score_silhouette", "score_frame", "score_poses", "ConfidenceConfig", "frame_confidence", "FOREGROUNDS",
            "ScoreSection", "foreground_for", "sequence_foreground", "SequenceBackground", "fill_holes",
            "SilhouetteTermConfig", "SilhouetteTerm",
-           "SilhouettePrior", "silhouette_term", "pill_images", "roi_box"]
+           "SilhouettePrior", "silhouette_term", "pill_images", "roi_box", "link_sides", "side_edge_share"]

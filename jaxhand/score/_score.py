@@ -61,6 +61,14 @@ class ScoreConfig:
             not all 0).
         min_link_px: links with fewer visible pixels are not judged on their own (px).
         rim_points: samples on each sphere's rim when rasterising (see :func:`rasterize`).
+        side_edge_px: the reach (px) along each link side's normal within which
+            :meth:`jaxhand.ImageFrontEnd.support` looks for an edge across the side
+            (:mod:`jaxhand.score._sides`); each link's support is then at most the share of its
+            visible side points that find one: a finger lying wrongly over the hand finds the
+            hand's edges near its outline, but few of them run along its sides (0: off).
+        side_edge_gradient: the gradient across a side (grey levels per px, after the blur) that
+            counts as its edge.
+        side_fractions: where along each link its side points lie (0: start, 1: end).
     """
 
     canny_low: float = 20.0
@@ -75,6 +83,9 @@ class ScoreConfig:
     w_worst_link: float = 1.0
     min_link_px: int = 30
     rim_points: int = 32
+    side_edge_px: float = 0.0
+    side_edge_gradient: float = 8.0
+    side_fractions: tuple[float, ...] = (0.15, 0.25, 0.35, 0.45, 0.55, 0.65, 0.75, 0.85)
 
     def __post_init__(self):
         w = self.weights
@@ -85,6 +96,13 @@ class ScoreConfig:
         if not 0 <= self.canny_low <= self.canny_high:
             raise InputError(f"ScoreConfig: need 0 <= canny_low <= canny_high, got {self.canny_low!r}, "
                              f"{self.canny_high!r}")
+        if not (np.isfinite(self.side_edge_px) and self.side_edge_px >= 0
+                and np.isfinite(self.side_edge_gradient) and self.side_edge_gradient > 0):
+            raise InputError(f"ScoreConfig.side_edge_px, side_edge_gradient: need >= 0 and > 0, got "
+                             f"{self.side_edge_px!r}, {self.side_edge_gradient!r}")
+        if not (len(self.side_fractions) and all(0 <= f <= 1 for f in self.side_fractions)):
+            raise InputError(f"ScoreConfig.side_fractions: need at least one fraction in [0, 1], got "
+                             f"{self.side_fractions!r}")
         if self.roi_margin_px is not None and self.roi_margin_px < 0:
             raise InputError(f"ScoreConfig.roi_margin_px: need >= 0 or None, got {self.roi_margin_px!r}")
 

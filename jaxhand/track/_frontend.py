@@ -30,6 +30,7 @@ from ..score import (
     roi_box,
     score_silhouette,
     sequence_foreground,
+    side_edge_share,
     silhouette_term,
 )
 from ._support import ImageSupport, largest_unexplained_px
@@ -214,15 +215,20 @@ class ImageFrontEnd(AbstractFrontEnd):
         return scores.mean(1)
 
     def support(self, images, q, state, margin_px: int = 1) -> ImageSupport:
-        """Each link's :func:`jaxhand.score.score_silhouette` link score at ``q`` per camera and the
+        """Each link's :func:`jaxhand.score.score_silhouette` link score at ``q`` per camera (at
+        most its :func:`jaxhand.score.side_edge_share` where ``side_edge_px`` is set) and the
         largest 8-connected blob of foreground outside the silhouette grown by ``margin_px``, on
         the score's foreground ("auto" where the score is off, as for the silhouette term)."""
         section = self._section()
         caps = capsules_from_model_batch(self.model, np.asarray(q, float).reshape(1, -1))[0]
         links, unexplained = [], 0
-        for cam, ev in zip(self._cameras(), self._frame_evidence(images)):
+        for c, (cam, ev) in enumerate(zip(self._cameras(), self._frame_evidence(images))):
             sil = rasterize(caps, cam, rim_points=section.silhouette.rim_points)
-            links.append(score_silhouette(sil, ev, section.silhouette).link_score[:self.model.n_links])
+            score = score_silhouette(sil, ev, section.silhouette).link_score[:self.model.n_links]
+            if section.silhouette.side_edge_px > 0:
+                share = side_edge_share(images[c], self.model, self.cameras[c], q, section.silhouette)
+                score = np.where(np.isfinite(share), np.minimum(score, share), score)   # NaN score: not judged
+            links.append(score)
             unexplained = max(unexplained, largest_unexplained_px(ev.foreground, sil.mask, margin_px))
         return ImageSupport(link_score=np.stack(links), unexplained_px=float(unexplained))
 
