@@ -28,7 +28,9 @@ __all__ = ["PRESETS"]
 #: hardly sees (benchmarks/README.md, 2026-12-05, third session). The thumb's joints carry an
 #: information-weighted prior of 20 deg towards the default pose (``prior.thumb_rest_sigma_deg``):
 #: one camera hardly sees a thumb's depth, and small feature biases had carried it far off
-#: (benchmarks/README.md, 2026-12-05, fourth session).
+#: (benchmarks/README.md, 2026-12-05, fourth session). Each link's support is capped by the share
+#: of its visible sides with an image edge across them within 4 px (``score.silhouette.side_edge_px``):
+#: a finger lying wrongly over the hand finds the hand's edges near it, but not along its sides.
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -53,4 +55,6 @@ PRESETS["robust-temporal"] = {**PRESETS["robust-limits"],
                               "prior": {**PRESETS["robust-limits"]["prior"], "temporal_sigma_deg": 15.0,
                                         "temporal_sigma_mm": 10.0, "information_ratio": 1.0, "temporal_merit": 0.1,
                                         "restore_hidden_below": 0.5, "thumb_rest_sigma_deg": 20.0},
-                              "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "prediction_margin": 0.05}}
+                              "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "prediction_margin": 0.05},
+                              "image": {**PRESETS["robust-limits"]["image"],
+                                        "score": {"silhouette": {"side_edge_px": 4.0}}}}
