@@ -19,7 +19,7 @@ import numpy as np
 from ..model import Model
 from ._foreground import as_grey
 from ._score import ScoreConfig
-from ._term import _pill_geometry, visible_outline
+from ._term import _pill_geometry, _sides, visible_outline
 
 __all__ = ["link_sides", "side_edge_share"]
 
@@ -31,9 +31,8 @@ def link_sides(model: Model, camera, q, fractions: tuple[float, ...]):
     geometry = _pill_geometry(model, camera, jnp.asarray(q))
     points, visible = visible_outline(model, geometry, fractions)
     n_side = 2 * model.n_links * len(fractions)
-    a, b = geometry[0][:model.n_links], geometry[1][:model.n_links]
-    u = (b - a) / jnp.sqrt(jnp.sum((b - a) ** 2, -1) + 1e-9)[:, None]
-    normal = jnp.repeat(jnp.stack([-u[:, 1], u[:, 0]], -1), len(fractions), axis=0)
+    _, normal, _, _ = _sides(*(g[:model.n_links] for g in geometry[:4]), fractions)
+    normal = jnp.repeat(normal, len(fractions), axis=0)
     return points[:n_side], jnp.concatenate([normal, normal]), visible[:n_side]
 
 
