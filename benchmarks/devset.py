@@ -77,7 +77,9 @@ SETTINGS = {
                                                        "score": {"foreground": "sequence"}}},
     # robust-temporal with that foreground (`jaxhand track --preset robust-temporal --foreground sequence`)
     "robust-temporal+sequence": {**PRESETS["robust-temporal"],
-                                 "image": {**PRESETS["robust-temporal"]["image"], "score": {"foreground": "sequence"}}},
+                                 "image": {**PRESETS["robust-temporal"]["image"],
+                                           "score": {**PRESETS["robust-temporal"]["image"]["score"],
+                                                     "foreground": "sequence"}}},
     # a fixed-sigma temporal prior around the g-h-k prediction, the g-h-k update reported
     "temporal5+dip": {"prior": {"temporal_sigma_deg": 5.0, "temporal_sigma_mm": 5.0, "dip_pip_weight": 10.0}},
     # the solve with the prior reported (the filter only predicts)
