@@ -31,6 +31,7 @@ from jaxhand.track._support import (
     tip_link_scores,
     unexplained_confidence,
     weakest_finger,
+    whole_finger_confidence,
 )
 
 DEVSET = Path(__file__).resolve().parent.parent / "data" / "mujoco"
@@ -91,6 +92,20 @@ def test_support_confidence_is_a_clipped_ramp():
     config = SupportConfig(unexplained_px=8.0)
     assert [unexplained_confidence(a, config) for a in (0, 8, 12, 20)] == pytest.approx([1.0, 0.5, 0.25, 0.0])
     assert unexplained_confidence(100, SupportConfig(unexplained_px=0.0)) == 1.0
+
+
+def test_whole_finger_confidence_ramps_the_weakest_finger_and_is_off_by_default():
+    config = SupportConfig(whole_lost=0.5, whole_good=0.8)
+    assert whole_finger_confidence({0: 0.9, 1: 0.65}, config) == pytest.approx(0.5)
+    assert whole_finger_confidence({0: 0.9, 1: 0.56}, config) == pytest.approx(0.2)
+    assert whole_finger_confidence({0: 0.45}, config) == 0.0
+    assert whole_finger_confidence({}, config) == 1.0
+    assert whole_finger_confidence({0: 0.1}, SupportConfig()) == 1.0
+    for lost, good in ((0.8, 0.5), (0.5, 0.0), (-0.1, 0.5), (0.5, 1.2)):
+        with pytest.raises(InputError, match="support.whole_lost"):
+            SupportConfig(whole_lost=lost, whole_good=good)
+    with pytest.raises(InputError, match="support.whole_good"):
+        SupportConfig(whole_good=float("nan"))
 
 
 def test_unexplained_foreground_is_the_largest_blob_beyond_the_margin():
@@ -198,18 +213,20 @@ def test_the_tracker_takes_the_lower_confidence(support, unexplained, enabled, l
     np.testing.assert_array_equal(judged.q_filtered, plain.q_filtered)
 
 
-@pytest.mark.parametrize("weak_link, tip_links, low", [(0, False, True), (0, True, False), ("tip", True, True)])
-def test_tip_links_leave_a_stray_proximal_phalanx_out(weak_link, tip_links, low):
+@pytest.mark.parametrize("weak_link, tip_links, whole, low", [
+    (0, False, False, True), (0, True, False, False), ("tip", True, False, True), (0, True, True, True)])
+def test_tip_links_leave_a_stray_proximal_phalanx_out(weak_link, tip_links, whole, low):
     """With ``support.tip_links`` a weak link that carries no tip does not lower the confidence;
-    a weak fingertip link still does."""
+    a weak fingertip link still does, and so does a weak whole finger with ``whole_lost``."""
     seq = make_preset("two_finger_occlusion", frames=3, size=(160, 120))
     m = seq.model
     link = m.tip_links[0] if weak_link == "tip" else weak_link
     assert (link in m.tip_links) == (weak_link == "tip")
     scores = np.full((1, m.n_links), 0.99)
-    scores[0, link] = 0.5
+    scores[0, link] = 0.3
     exact = ExactFrontEnd(m, seq.cameras, seq.q, noise_px=0.0)
-    config = TrackConfig(support=SupportConfig(enabled=True, tip_links=tip_links))
+    whole_levels = {"whole_lost": 0.8, "whole_good": 0.95} if whole else {}
+    config = TrackConfig(support=SupportConfig(enabled=True, tip_links=tip_links, **whole_levels))
     tracker = Tracker(m, seq.cameras, _Supported(exact, ImageSupport(link_score=scores)), config)
     _, rep = tracker.step(tracker.init(seq.q[0]), [None] * len(seq.cameras), 0)
     assert (rep.confidence < 0.5) == low

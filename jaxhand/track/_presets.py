@@ -31,6 +31,9 @@ __all__ = ["PRESETS"]
 #: (benchmarks/README.md, 2026-12-05, fourth session). Each link's support is capped by the share
 #: of its visible sides with an image edge across them within 4 px (``score.silhouette.side_edge_px``):
 #: a finger lying wrongly over the hand finds the hand's edges near it, but not along its sides.
+#: Each whole finger's support also lowers the confidence, ramped from 0.5 to 0.8
+#: (``support.whole_lost``): a finger folded the wrong way whose tip link still lies on edges
+#: (benchmarks/README.md, 2026-12-05, fifth session).
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -56,5 +59,6 @@ PRESETS["robust-temporal"] = {**PRESETS["robust-limits"],
                                         "temporal_sigma_mm": 10.0, "information_ratio": 1.0, "temporal_merit": 0.1,
                                         "restore_hidden_below": 0.5, "thumb_rest_sigma_deg": 20.0},
                               "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "prediction_margin": 0.05},
+                              "support": {**PRESETS["robust-limits"]["support"], "whole_lost": 0.5, "whole_good": 0.8},
                               "image": {**PRESETS["robust-limits"]["image"],
                                         "score": {"silhouette": {"side_edge_px": 4.0}}}}

@@ -6,7 +6,8 @@ A link's support is its :func:`jaxhand.score.score_silhouette` link score at the
 edges). A *finger* is a chain of links under one child of the base frame; its support is the
 mean over its judged links (a hidden link gives no evidence either way), and the frame's is the
 weakest finger's. With ``tip_links`` only the links that carry a fingertip are judged
-(:func:`tip_link_scores`). :func:`support_confidence` maps it onto [0, 1] with a ramp.
+(:func:`tip_link_scores`), optionally with each whole finger's support ramped too
+(:func:`whole_finger_confidence`). :func:`support_confidence` maps it onto [0, 1] with a ramp.
 
 The converse evidence: foreground the estimate leaves unexplained (:func:`largest_unexplained_px`,
 the largest blob of foreground outside the grown silhouette), e.g. the tip of a finger the model
@@ -26,8 +27,8 @@ from .._errors import InputError
 from ..model import Model
 
 __all__ = ["SupportConfig", "ImageSupport", "finger_of_frame", "finger_of_link", "moved_links", "finger_supports",
-           "weakest_finger", "tip_link_scores", "judge_weights", "support_confidence", "largest_unexplained_px",
-           "unexplained_confidence"]
+           "weakest_finger", "tip_link_scores", "judge_weights", "support_confidence", "whole_finger_confidence",
+           "largest_unexplained_px", "unexplained_confidence"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,6 +51,11 @@ class SupportConfig:
         tip_links: host. Judge each finger by the link that carries its tip alone (its distal
             phalanx): a finger whose tip lies on its image while a proximal phalanx strays off
             its edges still has its tip right, and the tips are what the loss flag is about.
+        whole_lost: host, in [0, 1]. With ``tip_links``, each finger's support over all its
+            links also lowers the confidence, ramped from this (0) to ``whole_good`` (1): a
+            finger whose tip link happens to lie on edges while the rest of it lies wrong
+            (folded the other way over the palm) is doubtful too. Both 0: off.
+        whole_good: host, in [0, 1]. ...and at which it is 1.
     """
 
     enabled: bool = False
@@ -59,6 +65,8 @@ class SupportConfig:
     margin_px: int = 1
     judge_power: float = 0.0
     tip_links: bool = False
+    whole_lost: float = 0.0
+    whole_good: float = 0.0
 
     def __post_init__(self):
         for name in ("enabled", "tip_links"):
@@ -69,6 +77,12 @@ class SupportConfig:
                 raise InputError(f"support.{name}: expected a finite number, got {getattr(self, name)!r}")
         if not 0.0 <= self.lost < self.good <= 1.0:
             raise InputError(f"support.lost: need 0 <= lost < good <= 1, got {self.lost}, {self.good}")
+        for name in ("whole_lost", "whole_good"):
+            if not _finite(getattr(self, name)):
+                raise InputError(f"support.{name}: expected a finite number, got {getattr(self, name)!r}")
+        if (self.whole_lost, self.whole_good) != (0.0, 0.0) and not 0.0 <= self.whole_lost < self.whole_good <= 1.0:
+            raise InputError(f"support.whole_lost: need 0 <= whole_lost < whole_good <= 1 (both 0: off), got "
+                             f"{self.whole_lost}, {self.whole_good}")
         for name in ("unexplained_px", "judge_power"):
             if not (_finite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise InputError(f"support.{name}: expected a finite number >= 0, got {getattr(self, name)!r}")
@@ -160,9 +174,22 @@ def judge_weights(link_scores: list, finger: np.ndarray, power: float) -> np.nda
 def support_confidence(support: float, config: SupportConfig) -> float:
     """The support's confidence: 0 at ``config.lost``, 1 at ``config.good``, linear between and
     clipped; 1 for NaN (no finger judged: no evidence against the frame)."""
-    if not np.isfinite(support):
+    return _ramp(support, config.lost, config.good)
+
+
+def whole_finger_confidence(fingers: dict[int, float], config: SupportConfig) -> float:
+    """The weakest whole finger's confidence (``fingers``: each finger's support over all its
+    links, :func:`finger_supports`): 0 at ``config.whole_lost``, 1 at ``config.whole_good``,
+    linear between and clipped; 1 when that term is off or no finger is judged."""
+    if config.whole_good <= 0.0 or not fingers:
         return 1.0
-    return float(np.clip((support - config.lost) / (config.good - config.lost), 0.0, 1.0))
+    return _ramp(min(fingers.values()), config.whole_lost, config.whole_good)
+
+
+def _ramp(value: float, lost: float, good: float) -> float:
+    if not np.isfinite(value):
+        return 1.0
+    return float(np.clip((value - lost) / (good - lost), 0.0, 1.0))
 
 
 def largest_unexplained_px(foreground, silhouette, margin_px: int) -> int:

@@ -51,6 +51,7 @@ from ._support import (
     support_confidence,
     tip_link_scores,
     unexplained_confidence,
+    whole_finger_confidence,
 )
 
 __all__ = ["TrackState", "StepReport", "Tracker"]
@@ -281,8 +282,9 @@ class Tracker:
         return full
 
     def _support(self, images, q, fe_state) -> tuple[float, dict[int, float], np.ndarray]:
-        """The image's support of ``q`` as a confidence, the lower of the weakest finger's (by its
-        tip's link alone with ``support.tip_links``) and the unexplained foreground's
+        """The image's support of ``q`` as a confidence, the lowest of the weakest finger's (by its
+        tip's link alone with ``support.tip_links``), the weakest whole finger's
+        (``support.whole_lost``) and the unexplained foreground's
         (:mod:`jaxhand.track._support`; 1 when the front end measures none), and each finger's
         support (all its links), and the q entries that move no judged link (hidden joints)."""
         config = self.config.support
@@ -293,7 +295,8 @@ class Tracker:
         judged = (finger_supports(tip_link_scores(measured.link_score, self.model.tip_links), self._finger)
                   if config.tip_links else fingers)
         weakest = min(judged.values(), default=float("nan"))
-        confidence = min(support_confidence(weakest, config), unexplained_confidence(measured.unexplained_px, config))
+        confidence = min(support_confidence(weakest, config), whole_finger_confidence(fingers, config),
+                         unexplained_confidence(measured.unexplained_px, config))
         judged_link = np.isfinite(np.asarray(measured.link_score, float).reshape(-1, self.model.n_links)).any(0)
         return confidence, fingers, np.flatnonzero(~(self._moves & judged_link).any(1) & self._moves.any(1))
 
