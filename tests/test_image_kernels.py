@@ -1,10 +1,13 @@
 """The image front end's vectorised kernels against slow, obvious references, and the shared search
 signature."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import shapely
 
+from jaxhand import InputError
 from jaxhand.image import SEARCH_NAMES, SearchConfig
 from jaxhand.image import SamplerConfig as SC
 from jaxhand.image.internal import (
@@ -25,6 +28,7 @@ from jaxhand.image.internal import (
     window_masks,
     wssd_surface,
 )
+from jaxhand.track import config_from_dict
 
 
 def _image(seed=0, h=30, w=40):
@@ -165,6 +169,37 @@ def test_wssd_surface_matches_reference():
                      if win[idx][j] and 0 <= j + s < 12 and usable[idx][j + s]]
             assert counts[idx][si] == len(terms)
             assert (np.isinf(W[idx][si]) and not terms) or np.isclose(W[idx][si], np.mean(terms))
+
+
+def test_zero_mean_wssd_surface_is_the_variance_of_the_difference():
+    rng = np.random.default_rng(6)
+    vals = rng.uniform(0, 255, (3, 2, 12))
+    usable = rng.random(vals.shape) > 0.1
+    tmpl = rng.uniform(0, 255, vals.shape)
+    win = rng.random(vals.shape) > 0.3
+    W, counts, shifts = wssd_surface(vals, usable, tmpl, win, 3, zero_mean=True)
+    plain, plain_counts, _ = wssd_surface(vals, usable, tmpl, win, 3)
+    np.testing.assert_array_equal(counts, plain_counts)
+    for idx in np.ndindex(vals.shape[:-1]):
+        for si, s in enumerate(shifts):
+            d = [vals[idx][j + s] - tmpl[idx][j] for j in range(12)
+                 if win[idx][j] and 0 <= j + s < 12 and usable[idx][j + s]]
+            assert (np.isinf(W[idx][si]) and not d) or np.isclose(W[idx][si], np.var(d))
+            assert not d or W[idx][si] <= plain[idx][si] + 1e-9
+
+
+def test_zero_mean_wssd_matches_a_bar_that_shades_lighter():
+    """A bar 60 grey levels brighter than its template (a phalanx turned in the light) is no match
+    for the plain WSSD (its RMS difference exceeds half the template's spread) but is found, in
+    its place, by the zero-mean one."""
+    prof = _synthetic_profiles(shift=1.5)
+    lighter = dataclasses.replace(prof, values=prof.values + 60.0)
+    assert not search_named("wssd")(lighter, SearchConfig()).valid.any()
+    edges = search_named("wssd")(lighter, SearchConfig(zero_mean=True))
+    want = 19.5 + 1.5 + 0.1 * np.arange(6)[None, :] * np.arange(3)[:, None]
+    assert edges.valid.all() and np.allclose(edges.pos.mean(-1), want, atol=0.3)
+    with pytest.raises(InputError, match="zero_mean"):
+        config_from_dict({"image": {"search": {"zero_mean": 1}}})
 
 
 @pytest.mark.parametrize("n", [12, 16, 48, 248, 256])

@@ -109,6 +109,10 @@ class SearchConfig:
             edge of the right sign within this distance (in ``r``), so the measurement rests on
             the image's edge rather than on where an earlier, possibly slightly misplaced,
             template put it (template drift); 0 keeps the template's boundaries (the thesis).
+        zero_mean: a link most of whose profiles fail WSSD's mismatch test is matched again
+            with the mean difference between profile and template taken out (the variance of
+            the difference instead of its mean square): a phalanx that turns in the light and
+            shades darker or lighter as a whole still matches. False: the thesis's WSSD alone.
     """
 
     polarity: str = "bright"
@@ -124,6 +128,7 @@ class SearchConfig:
     min_window: float = 0.15
     max_mismatch: float = 0.5
     snap: float = 0.2
+    zero_mean: bool = False
 
     def __post_init__(self):
         w = "SearchConfig"
@@ -141,6 +146,7 @@ class SearchConfig:
         _check(0 < self.min_window <= 1, f"{w}.min_window", f"must lie in (0, 1], got {self.min_window!r}")
         _check(self.max_mismatch > 0, f"{w}.max_mismatch", f"must be > 0, got {self.max_mismatch!r}")
         _check(self.snap >= 0, f"{w}.snap", f"must be >= 0, got {self.snap!r}")
+        _check(isinstance(self.zero_mean, bool), f"{w}.zero_mean", f"expected true or false, got {self.zero_mean!r}")
 
     @property
     def sign(self) -> float:

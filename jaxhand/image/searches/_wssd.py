@@ -46,11 +46,13 @@ from ._common import (
 __all__ = ["wssd_valley", "wssd_surface"]
 
 
-def wssd_surface(values: np.ndarray, usable: np.ndarray, templates: np.ndarray, window: np.ndarray, max_shift: int
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def wssd_surface(values: np.ndarray, usable: np.ndarray, templates: np.ndarray, window: np.ndarray, max_shift: int,
+                 zero_mean: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Mean windowed squared difference of every profile against its template at every shift.
 
-    ``WSSD(s) = mean over j with v(j) and I(j + s) usable of (I(j + s) - t(j))^2``.
+    ``WSSD(s) = mean over j with v(j) and I(j + s) usable of (I(j + s) - t(j))^2``; with
+    ``zero_mean`` the mean of the difference over those j is taken out first (its variance), so
+    an offset in brightness between profile and template costs nothing.
 
     Args:
         values, usable: (..., n) current profiles and their usable samples.
@@ -73,8 +75,12 @@ def wssd_surface(values: np.ndarray, usable: np.ndarray, templates: np.ndarray, 
     diff = np.subtract(img, np.where(window, templates, 0.0)[..., None, :])
     np.multiply(diff, ok, out=diff)  # in place: the surface is the largest array of a frame
     counts = _count_last(ok)
-    W = np.where(counts > 0, np.square(diff, out=diff).sum(-1) / np.maximum(counts, 1), np.inf)
-    return W, counts, np.arange(-S, S + 1)
+    n_terms = np.maximum(counts, 1)
+    mean_diff = diff.sum(-1) / n_terms if zero_mean else 0.0
+    W = np.square(diff, out=diff).sum(-1) / n_terms
+    if zero_mean:
+        W = np.maximum(W - np.square(mean_diff), 0.0)   # Guard: rounding below 0 for a perfect match
+    return np.where(counts > 0, W, np.inf), counts, np.arange(-S, S + 1)
 
 
 def _count_last(b: np.ndarray) -> np.ndarray:
@@ -208,6 +214,17 @@ def _snap_to_edges(profiles: Profiles, pos: np.ndarray, window: np.ndarray, conf
     return out
 
 
+def _valley(W: np.ndarray, curve_ok: np.ndarray, contrast: np.ndarray, S: int, config: SearchConfig
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """The valley line's shift per profile and whether it counts: descended and refined
+    (thesis §4.3.2), inside the searched shifts, and its WSSD within ``max_mismatch`` of the
+    template's contrast."""
+    yhat, fit_ok = _descend(W, curve_ok, S, config.max_iter)
+    y, ok, wmin = _refine(W, yhat, curve_ok, S, config.subsample)
+    match = np.sqrt(np.where(np.isfinite(wmin), wmin, np.inf)) <= config.max_mismatch * contrast
+    return y, curve_ok & (fit_ok & ok)[:, None] & match & (np.abs(y) <= S)
+
+
 def wssd_valley(profiles: Profiles, config: SearchConfig) -> Edges:
     """Boundaries from the valley line of the windowed-SSD surface against stored templates."""
     L, M, N = profiles.shape
@@ -226,10 +243,14 @@ def wssd_valley(profiles: Profiles, config: SearchConfig) -> Edges:
     mean = np.where(window, templates, 0.0).sum(-1) / wn
     contrast = np.sqrt(np.where(window, (templates - mean[..., None]) ** 2, 0.0).sum(-1) / wn)
     curve_ok = tvalid[:, None] & enough & (contrast >= config.min_strength)
-    yhat, fit_ok = _descend(W, curve_ok, S, config.max_iter)
-    y, ok, wmin = _refine(W, yhat, curve_ok, S, config.subsample)
-    match = np.sqrt(np.where(np.isfinite(wmin), wmin, np.inf)) <= config.max_mismatch * contrast
-    valid = curve_ok & (fit_ok & ok)[:, None] & match & (np.abs(y) <= S)
+    y, valid = _valley(W, curve_ok, contrast, S, config)
+    if config.zero_mean:   # links most of whose profiles no longer match: again, brightness offset removed
+        again = valid.sum(1) * 2 < curve_ok.sum(1)
+        if again.any():
+            W = W.copy()
+            W[again] = wssd_surface(profiles.values[again], profiles.usable[again], templates[again], window[again],
+                                    S, zero_mean=True)[0]
+            y[again], valid[again] = _valley(W[again], curve_ok[again], contrast[again], S, config)
     pos = edges_about_centres(profiles.centre + y, 2 * profiles.radius)
     if config.snap > 0:
         pos = _snap_to_edges(profiles, pos, window, config)
