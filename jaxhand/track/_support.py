@@ -51,10 +51,10 @@ class SupportConfig:
         tip_links: host. Judge each finger by the link that carries its tip alone (its distal
             phalanx): a finger whose tip lies on its image while a proximal phalanx strays off
             its edges still has its tip right, and the tips are what the loss flag is about.
-        whole_lost: host, in [0, 1]. With ``tip_links``, each finger's support over all its
-            links also lowers the confidence, ramped from this (0) to ``whole_good`` (1): a
-            finger whose tip link happens to lie on edges while the rest of it lies wrong
-            (folded the other way over the palm) is doubtful too. Both 0: off.
+        whole_lost: host, in [0, 1]. Each finger's support over all its links also lowers the
+            confidence, ramped from this (0) to ``whole_good`` (1). With ``tip_links`` a finger
+            whose tip link happens to lie on edges while the rest of it lies wrong (folded the
+            other way over the palm) is then doubtful too. Both 0: off.
         whole_good: host, in [0, 1]. ...and at which it is 1.
     """
 
