@@ -160,13 +160,15 @@ def test_presets_apply_named_changes_and_unknown_names_are_listed():
                                       "thumb_rest_sigma_deg": 0.0},
                             "hypotheses": {"prediction_margin": 0.0},
                             "support": {"whole_lost": 0.0, "whole_good": 0.0},
-                            "image": {"score": {"silhouette": {"side_edge_px": 0.0}}}}) == limits
+                            "image": {"search": {"zero_mean": False},
+                                      "score": {"silhouette": {"side_edge_px": 0.0}}}}) == limits
     assert temporal.hypotheses.prediction_margin == 0.05
     assert (temporal.prior.temporal_sigma_deg, temporal.prior.information_ratio) == (15.0, 1.0)
     assert (temporal.prior.temporal_merit, temporal.prior.restore_hidden_below) == (0.1, 0.5)
     assert temporal.prior.thumb_rest_sigma_deg == 20.0
     assert temporal.image.score.silhouette.side_edge_px == 4.0
     assert (temporal.support.whole_lost, temporal.support.whole_good) == (0.5, 0.8)
+    assert temporal.image.search.zero_mean and not limits.image.search.zero_mean
     with pytest.raises(jh.InputError,
                        match="preset: unknown preset 'fast'; valid: thesis, robust, robust-limits, coupled, "
                              "robust-temporal"):

@@ -109,10 +109,11 @@ class SearchConfig:
             edge of the right sign within this distance (in ``r``), so the measurement rests on
             the image's edge rather than on where an earlier, possibly slightly misplaced,
             template put it (template drift); 0 keeps the template's boundaries (the thesis).
-        zero_mean: a link most of whose profiles fail WSSD's mismatch test is matched again
-            with the mean difference between profile and template taken out (the variance of
-            the difference instead of its mean square): a phalanx that turns in the light and
-            shades darker or lighter as a whole still matches. False: the thesis's WSSD alone.
+        zero_mean: where most of a camera's links fail WSSD's mismatch test at once (the hand
+            shading as a whole, not an occluder), each failing link is matched again with the
+            mean difference between profile and template taken out (the variance of the
+            difference instead of its mean square): fingers that turn in the light as they
+            close fast still match. False: the thesis's WSSD alone.
     """
 
     polarity: str = "bright"

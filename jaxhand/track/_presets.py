@@ -33,7 +33,9 @@ __all__ = ["PRESETS"]
 #: a finger lying wrongly over the hand finds the hand's edges near it, but not along its sides.
 #: Each whole finger's support also lowers the confidence, ramped from 0.5 to 0.8
 #: (``support.whole_lost``): a finger folded the wrong way whose tip link still lies on edges
-#: (benchmarks/README.md, 2026-12-05, fifth session).
+#: (benchmarks/README.md, 2026-12-05, fifth session). Where most of a camera's links fail WSSD's
+#: mismatch test at once, they are matched again without the brightness offset
+#: (``search.zero_mean``): fingers closing fast shade darker as a whole (same section).
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -60,5 +62,5 @@ PRESETS["robust-temporal"] = {**PRESETS["robust-limits"],
                                         "restore_hidden_below": 0.5, "thumb_rest_sigma_deg": 20.0},
                               "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "prediction_margin": 0.05},
                               "support": {**PRESETS["robust-limits"]["support"], "whole_lost": 0.5, "whole_good": 0.8},
-                              "image": {**PRESETS["robust-limits"]["image"],
+                              "image": {**PRESETS["robust-limits"]["image"], "search": {"zero_mean": True},
                                         "score": {"silhouette": {"side_edge_px": 4.0}}}}

@@ -246,7 +246,7 @@ def wssd_valley(profiles: Profiles, config: SearchConfig) -> Edges:
     y, valid = _valley(W, curve_ok, contrast, S, config)
     if config.zero_mean:   # links most of whose profiles no longer match: again, brightness offset removed
         again = valid.sum(1) * 2 < curve_ok.sum(1)
-        if again.any():
+        if again.sum() * 2 > curve_ok.any(1).sum():   # most links at once: the hand's shading, not an occluder
             W = W.copy()
             W[again] = wssd_surface(profiles.values[again], profiles.usable[again], templates[again], window[again],
                                     S, zero_mean=True)[0]
