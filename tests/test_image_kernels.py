@@ -156,34 +156,40 @@ def test_correlate_shifts_matches_reference():
             assert np.isclose(C[idx][si], want)
 
 
-def test_wssd_surface_matches_reference():
-    rng = np.random.default_rng(5)
+def _wssd_case(seed):
+    """Random profiles, usable samples, templates and windows, (3, 2, 12)."""
+    rng = np.random.default_rng(seed)
     vals = rng.uniform(0, 255, (3, 2, 12))
     usable = rng.random(vals.shape) > 0.1
     tmpl = rng.uniform(0, 255, vals.shape)
     win = rng.random(vals.shape) > 0.3
-    W, counts, shifts = wssd_surface(vals, usable, tmpl, win, 3)
-    for idx in np.ndindex(vals.shape[:-1]):
+    return vals, usable, tmpl, win
+
+
+def _wssd_differences(vals, usable, tmpl, win, idx, s):
+    """The differences I(j + s) - t(j) that profile ``idx`` counts at shift ``s``, by a plain loop."""
+    n = vals.shape[-1]
+    return [vals[idx][j + s] - tmpl[idx][j] for j in range(n) if win[idx][j] and 0 <= j + s < n and usable[idx][j + s]]
+
+
+def test_wssd_surface_matches_reference():
+    case = _wssd_case(5)
+    W, counts, shifts = wssd_surface(*case, 3)
+    for idx in np.ndindex(case[0].shape[:-1]):
         for si, s in enumerate(shifts):
-            terms = [(vals[idx][j + s] - tmpl[idx][j]) ** 2 for j in range(12)
-                     if win[idx][j] and 0 <= j + s < 12 and usable[idx][j + s]]
+            terms = np.square(_wssd_differences(*case, idx, s))
             assert counts[idx][si] == len(terms)
-            assert (np.isinf(W[idx][si]) and not terms) or np.isclose(W[idx][si], np.mean(terms))
+            assert (np.isinf(W[idx][si]) and not len(terms)) or np.isclose(W[idx][si], np.mean(terms))
 
 
 def test_zero_mean_wssd_surface_is_the_variance_of_the_difference():
-    rng = np.random.default_rng(6)
-    vals = rng.uniform(0, 255, (3, 2, 12))
-    usable = rng.random(vals.shape) > 0.1
-    tmpl = rng.uniform(0, 255, vals.shape)
-    win = rng.random(vals.shape) > 0.3
-    W, counts, shifts = wssd_surface(vals, usable, tmpl, win, 3, zero_mean=True)
-    plain, plain_counts, _ = wssd_surface(vals, usable, tmpl, win, 3)
+    case = _wssd_case(6)
+    W, counts, shifts = wssd_surface(*case, 3, zero_mean=True)
+    plain, plain_counts, _ = wssd_surface(*case, 3)
     np.testing.assert_array_equal(counts, plain_counts)
-    for idx in np.ndindex(vals.shape[:-1]):
+    for idx in np.ndindex(case[0].shape[:-1]):
         for si, s in enumerate(shifts):
-            d = [vals[idx][j + s] - tmpl[idx][j] for j in range(12)
-                 if win[idx][j] and 0 <= j + s < 12 and usable[idx][j + s]]
+            d = _wssd_differences(*case, idx, s)
             assert (np.isinf(W[idx][si]) and not d) or np.isclose(W[idx][si], np.var(d))
             assert not d or W[idx][si] <= plain[idx][si] + 1e-9
 

@@ -247,7 +247,6 @@ def wssd_valley(profiles: Profiles, config: SearchConfig) -> Edges:
     if config.zero_mean:   # links most of whose profiles no longer match: again, brightness offset removed
         again = valid.sum(1) * 2 < curve_ok.sum(1)
         if again.sum() * 2 > curve_ok.any(1).sum():   # most links at once: the hand's shading, not an occluder
-            W = W.copy()
             W[again] = wssd_surface(profiles.values[again], profiles.usable[again], templates[again], window[again],
                                     S, zero_mean=True)[0]
             y[again], valid[again] = _valley(W[again], curve_ok[again], contrast[again], S, config)
