@@ -158,11 +158,11 @@ def test_presets_apply_named_changes_and_unknown_names_are_listed():
     assert temporal.merged({"prior": {"temporal_sigma_deg": 0.0, "temporal_sigma_mm": 0.0, "information_ratio": 0.0,
                                       "temporal_merit": 0.0, "restore_hidden_below": 0.0,
                                       "thumb_rest_sigma_deg": 0.0},
-                            "hypotheses": {"prediction_margin": 0.0},
+                            "hypotheses": {"prediction_margin": 0.0, "verify_below": 0.0},
                             "support": {"whole_lost": 0.0, "whole_good": 0.0},
                             "image": {"search": {"zero_mean": False},
                                       "score": {"silhouette": {"side_edge_px": 0.0}}}}) == limits
-    assert temporal.hypotheses.prediction_margin == 0.05
+    assert (temporal.hypotheses.prediction_margin, temporal.hypotheses.verify_below) == (0.05, 0.5)
     assert (temporal.prior.temporal_sigma_deg, temporal.prior.information_ratio) == (15.0, 1.0)
     assert (temporal.prior.temporal_merit, temporal.prior.restore_hidden_below) == (0.1, 0.5)
     assert temporal.prior.thumb_rest_sigma_deg == 20.0

@@ -37,8 +37,9 @@ from ._frontend import (
 from ._presets import PRESETS
 from ._score import confidence_of, frame_score, judge_frame
 from ._sequence import accuracy_summary, frame_tip_error_px, loss_flag_quality, track_sequence
+from ._state import StepReport, TrackState
 from ._support import ImageSupport, SupportConfig
-from ._tracker import StepReport, Tracker, TrackState
+from ._tracker import Tracker
 
 __all__ = [
     "TrackConfig", "FilterConfig", "RobustConfig", "LossConfig", "PriorConfig", "HypothesisConfig", "LandmarkConfig",

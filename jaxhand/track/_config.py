@@ -346,6 +346,8 @@ class TrackConfig:
         flag(self.refresh_templates, "refresh_templates")
         need(not self.prior.restore_hidden_below or self.support.enabled or bool(self.hypotheses.finger_level),
              "prior.restore_hidden_below", "needs the image support to tell hidden joints: set support.enabled")
+        need(not self.hypotheses.verify_below or self.support.enabled, "hypotheses.verify_below",
+             "needs the image support to judge the fingers: set support.enabled")
 
     def __eq__(self, other) -> bool:   # by value: FitConfig holds arrays
         return isinstance(other, TrackConfig) and config_to_dict(self) == config_to_dict(other)

@@ -62,6 +62,16 @@ class HypothesisConfig:
         finger_deg: host, deg. The bends of those starts, each added to every flexion hinge of
             the finger (axis parallel to its last hinge's) towards the wider side of the hinge's
             range (a hand's flexion); negative: the other way.
+        verify_below: host, in [0, 1]. After a frame's estimate whose confidence is below this,
+            the planar finger whose links the image supports least is searched again: from the
+            estimate with that finger bent by each of ``finger_deg``, with each of its hinges
+            reflected across its fold, and with its joints at the last trusted pose, each start
+            with features searched around itself and a solve without the temporal prior. The
+            best by finger support replaces the estimate where it wins by ``verify_margin``
+            (:mod:`jaxhand.track._verify`; 0: off). All starts share features searched around
+            the prediction, so a finger folded the wrong way keeps the features of that fold.
+        verify_margin: host, in [0, 1]. How much more support the weakest finger must get (and
+            the most any other finger may lose) for a verified start to replace the estimate.
     """
 
     flips: int = 0
@@ -84,6 +94,8 @@ class HypothesisConfig:
     coarse_steps: int = 0
     finger_level: float = 0.0
     finger_deg: tuple[float, ...] = (20.0, 40.0, -20.0)
+    verify_below: float = 0.0
+    verify_margin: float = 0.05
 
     def __post_init__(self):
         for name in ("flips", "folds", "carry", "recover", "seed", "coarse_steps"):
@@ -95,7 +107,7 @@ class HypothesisConfig:
             value = getattr(self, name)
             need(finite_number(value) and value >= 0, f"hypotheses.{name}",
                  f"expected a finite number >= 0, got {value!r}")
-        for name in ("carry_margin", "finger_level", "rest_below", "step_trust"):
+        for name in ("carry_margin", "finger_level", "rest_below", "step_trust", "verify_below", "verify_margin"):
             value = getattr(self, name)
             need(finite_number(value) and 0.0 <= value <= 1.0,
                  f"hypotheses.{name}", f"must lie in [0, 1], got {value!r}")

@@ -47,7 +47,7 @@ __all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "image_merit", "ch
            "extra_starts", "finger_starts", "too_far", "favour_prediction", "joint_angles", "LABELS"]
 
 #: The kinds of start, as :attr:`StepReport.hypothesis` names the winner's.
-LABELS = ("prediction", "flip", "fold", "last_solve", "rest", "carried", "proposal", "recover", "finger")
+LABELS = ("prediction", "flip", "fold", "last_solve", "rest", "carried", "proposal", "recover", "finger", "verify")
 
 
 def _flippable(model: Model) -> np.ndarray:

@@ -28,7 +28,8 @@ from .._errors import JaxhandWarning
 from ..landmarks import LandmarkPoses, LandmarkSequence, fit_landmark_poses, landmark_agreement, projected_landmarks
 from ..model import Model
 from ._config import LandmarkConfig
-from ._tracker import StepReport, Tracker, TrackState
+from ._state import StepReport, TrackState
+from ._tracker import Tracker
 
 __all__ = ["LandmarkRun"]
 

@@ -36,6 +36,11 @@ __all__ = ["PRESETS"]
 #: (benchmarks/README.md, 2026-12-05, fifth session). Where most of a camera's links fail WSSD's
 #: mismatch test at once, they are matched again without the brightness offset
 #: (``search.zero_mean``): fingers closing fast shade darker as a whole (same section).
+#: After an estimate whose support confidence is under 0.5, the finger the image supports least
+#: is searched again from starts of its own (bent, its hinges reflected across their folds, back
+#: at the last trusted pose), each with features searched around itself, and the best by finger
+#: support replaces it (``hypotheses.verify_below``): a finger folded the wrong way keeps the
+#: features of its fold (benchmarks/README.md, 2026-12-05, sixth session).
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -60,7 +65,8 @@ PRESETS["robust-temporal"] = {**PRESETS["robust-limits"],
                               "prior": {**PRESETS["robust-limits"]["prior"], "temporal_sigma_deg": 15.0,
                                         "temporal_sigma_mm": 10.0, "information_ratio": 1.0, "temporal_merit": 0.1,
                                         "restore_hidden_below": 0.5, "thumb_rest_sigma_deg": 20.0},
-                              "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "prediction_margin": 0.05},
+                              "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "prediction_margin": 0.05,
+                                             "verify_below": 0.5},
                               "support": {**PRESETS["robust-limits"]["support"], "whole_lost": 0.5, "whole_good": 0.8},
                               "image": {**PRESETS["robust-limits"]["image"], "search": {"zero_mean": True},
                                         "score": {"silhouette": {"side_edge_px": 4.0}}}}

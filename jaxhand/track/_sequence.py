@@ -36,7 +36,8 @@ from ..viz import VideoWriter, draw_view, plot_joint_angles
 from ._config import TrackConfig, config_to_dict
 from ._frontend import AbstractFrontEnd, ImageFrontEnd, image_front_end
 from ._landmarks import LandmarkRun
-from ._tracker import StepReport, Tracker
+from ._state import StepReport
+from ._tracker import Tracker
 
 __all__ = ["track_sequence", "accuracy_summary", "frame_tip_error_px", "loss_flag_quality"]
 

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Mapping, Sequence
-from typing import Any, no_type_check
+from collections.abc import Sequence
+from typing import no_type_check
 
 import jax
 import jax.numpy as jnp
@@ -39,9 +39,19 @@ from ..solve import STATUS_NAMES
 from ._compiled import FEATURE_FIELDS, SCALARS, FrameProgram
 from ._config import TrackConfig
 from ._flexion import flexion_hinges
-from ._frontend import AbstractFrontEnd, FrontEndDiagnostics
-from ._hypotheses import HypothesisProgram, check_proposals, choose, extra_starts, joint_angles, runners_up, too_far
+from ._frontend import AbstractFrontEnd
+from ._hypotheses import (
+    HypothesisProgram,
+    check_proposals,
+    choose,
+    extra_starts,
+    fold_starts,
+    joint_angles,
+    runners_up,
+    too_far,
+)
 from ._score import held_filter, judge_frame
+from ._state import StepReport, TrackState
 from ._support import (
     finger_of_frame,
     finger_of_link,
@@ -53,72 +63,9 @@ from ._support import (
     unexplained_confidence,
     whole_finger_confidence,
 )
+from ._verify import beats, verify_starts
 
-__all__ = ["TrackState", "StepReport", "Tracker"]
-
-
-@dataclasses.dataclass(frozen=True)
-class TrackState:
-    """What the tracker carries between frames.
-
-    Attributes:
-        ghk: the filter state, whose x is the prediction for the next frame.
-        frontend_state: the front end's state (templates, widths; None before the first frame).
-        q_last: the last reported estimate (held on a lost frame).
-        score_reference: the image score of the first scored frame (NaN before it; see
-            :attr:`~jaxhand.track.LossConfig.score_relative`).
-        q_solved: the last frame's solve (a start with :attr:`HypothesisConfig.last_solve`).
-        carried: the runners-up carried as extra starts (:attr:`HypothesisConfig.carry`), (m, n_q).
-        lost: whether the last frame was lost (the next frames then recover, :attr:`HypothesisConfig.recover`).
-        weak_finger: the finger the image supported least on the last frame, when its confidence was
-            under :attr:`HypothesisConfig.finger_level` (the next frame bends it); -1: none.
-        confidence: the last frame's confidence (:attr:`PriorConfig.temporal_min_confidence`).
-        q_trusted: the estimate of the last frame whose confidence reached
-            :attr:`PriorConfig.restore_hidden_below` (the initial pose before one did).
-        hidden: the q entries the image did not show on the last frame (they move no link the
-            front end's support judged; empty when it was not measured).
-        unseen: per q entry, the frames in a row none of whose links had a feature line (None
-            unless :attr:`PriorConfig.hold_unseen_frames`).
-        q_seen: per q entry, its estimate on the last frame that measured one of its links.
-    """
-
-    ghk: GHKState
-    frontend_state: Any
-    q_last: np.ndarray
-    score_reference: float = float("nan")
-    q_solved: np.ndarray | None = None
-    carried: np.ndarray | None = None
-    lost: bool = False
-    weak_finger: int = -1
-    confidence: float = 1.0
-    q_trusted: np.ndarray | None = None
-    hidden: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
-    unseen: np.ndarray | None = None
-    q_seen: np.ndarray | None = None
-
-
-@dataclasses.dataclass(frozen=True)
-class StepReport:
-    """Exactly what gets written for one frame (angles in rad, pixels, seconds)."""
-
-    frame: int
-    time_s: float
-    q_pred: np.ndarray
-    q_solved: np.ndarray
-    q_filtered: np.ndarray
-    cost: float
-    rms_px: float
-    iterations: int
-    status: str
-    valid_share: float
-    confidence: float
-    lost: bool
-    timings_s: Mapping[str, float]
-    diagnostics: FrontEndDiagnostics
-    image_score: float = float("nan")   # the front end's score of q_filtered (NaN: none)
-    hypothesis: str = "prediction"   # the kind of start that won (jaxhand.track._hypotheses.LABELS)
-    starts: int = 1                  # the starts solved
-    reinitialised: bool = False      # the first frame not lost after a lost one
+__all__ = ["Tracker"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -186,6 +133,11 @@ class Tracker:
         self._moves = moved_links(model)
         self._is_angle = np.asarray(model.is_angle)
         self._joint_angle = joint_angles(model)
+        # a doubtful finger's starts, each solved without the temporal prior (HypothesisConfig.verify_below)
+        self._verify_program, self._folds = (
+            (FrameProgram(model, self.cameras, config, self.theta, self.dt_s, temporal=False),
+             jax.jit(lambda q: fold_starts(model, self.cameras[0], q, model.n_q)))
+            if config.hypotheses.verify_below else (None, None))
 
     def _feature_arrays(self, features) -> tuple[tuple, ...]:
         """The front end's features as one tuple of :data:`FEATURE_FIELDS` arrays per camera,
@@ -351,6 +303,13 @@ class Tracker:
             if not out["features_ok"] or out["lost"]:  # nothing better to search around
                 break
             q_start = np.clip(q_meas, self._lower, self._upper)
+        if self._verify_program is not None and out["features_ok"] and not out["lost"]:
+            t0 = time.perf_counter()
+            found = self._verify(images, state, ghk, filtered, fe_state, frame, terms)
+            if found is not None:
+                (q_meas, filtered, out, ghk_next, fe_state, extracted) = found
+                picked = dataclasses.replace(picked, label="verify")
+            t_solve += time.perf_counter() - t0
         if not out["features_ok"]:
             raise_on_values(tuple(extracted.features))   # raises, naming camera and field
             raise InputError("features: a value check failed (see jaxhand.features.feature_value_checks)")
@@ -393,6 +352,34 @@ class Tracker:
                           confidence=confidence, hidden=hidden,
                           q_trusted=filtered if confidence >= self.config.prior.restore_hidden_below
                           else state.q_trusted, unseen=unseen, q_seen=q_seen), report
+
+    def _verify(self, images, state: TrackState, ghk: tuple, q: np.ndarray, fe_state, frame: int, terms: tuple):
+        """The best of the doubtful finger's starts (:mod:`jaxhand.track._verify`), each with its own
+        features and solve, as ``(q_solved, q_filtered, scalars, filter state, front-end state,
+        extraction)``, where one beats ``q``'s finger supports; else None. The filter forgets the
+        finger's velocity: the jump is a correction, not motion."""
+        hyp = self.config.hypotheses
+        support, fingers, _ = self._support(images, q, fe_state)
+        joints = self._flexion.get(min(fingers, key=fingers.get)) if fingers else None
+        if support >= hyp.verify_below or joints is None:
+            return None
+        folds = np.unique(np.asarray(self._folds(jnp.asarray(q, self._dtype))), axis=0)
+        starts = verify_starts(q, joints, hyp.finger_deg, self._lower, self._upper, folds, state.q_trusted)
+        best, best_value = None, -np.inf
+        for q0 in starts:
+            extracted = self.frontend.extract(images, q0, fe_state, frame)
+            feats = self._feature_arrays(extracted.features)
+            (q_meas, filtered, scalars), (x, v, a) = self._verify_program(feats, ghk, state.q_last, q0,
+                                                                           tuple(extracted.terms) + tuple(terms))
+            q_meas, filtered, scalars = jax.device_get((q_meas, filtered, scalars))
+            out = dict(zip(SCALARS, scalars.tolist()))
+            if not (out["features_ok"] and out["solved_ok"]) or out["lost"]:
+                continue
+            found = self._support(images, q_meas, extracted.state)[1]
+            if beats(found, fingers, hyp.verify_margin) and min(found.values()) > best_value:
+                ghk_next = (x, v.at[joints].set(0.0), a.at[joints].set(0.0))
+                best, best_value = (q_meas, filtered, out, ghk_next, extracted.state, extracted), min(found.values())
+        return best
 
     def _unseen(self, state: TrackState, features, q) -> tuple[np.ndarray, np.ndarray]:
         """Per q entry, the frames in a row none of whose moved links had a feature line, and its
