@@ -112,8 +112,10 @@ def test_a_wrong_fold_is_searched_again_from_its_own_starts(verify_below):
     if not verify_below:   # one search, around the wrong fold: the solve stays there
         np.testing.assert_allclose(report.q_solved, wrong, atol=1e-6)
         assert report.hypothesis == "prediction" and report.confidence == 0.0 and len(frontend.starts) == 1
+        assert "verify" not in report.timings_s
         return
     np.testing.assert_allclose(report.q_solved, truth, atol=1e-6)
     assert report.hypothesis == "verify" and report.confidence == pytest.approx((0.95 - 0.80) / (0.96 - 0.80))
     assert len(frontend.starts) > 3                           # the prediction's search, then one per start
+    assert report.timings_s["verify"] > 0.0
     np.testing.assert_allclose(np.asarray(state.ghk.v)[joints], 0.0)   # the jump is not motion

@@ -303,19 +303,22 @@ class Tracker:
             if not out["features_ok"] or out["lost"]:  # nothing better to search around
                 break
             q_start = np.clip(q_meas, self._lower, self._upper)
+        t_verify = None
         if self._verify_program is not None and out["features_ok"] and not out["lost"]:
             t0 = time.perf_counter()
             found = self._verify(images, state, ghk, filtered, fe_state, frame, terms)
             if found is not None:
                 (q_meas, filtered, out, ghk_next, fe_state, extracted) = found
                 picked = dataclasses.replace(picked, label="verify")
-            t_solve += time.perf_counter() - t0
+            t_verify = time.perf_counter() - t0
         if not out["features_ok"]:
             raise_on_values(tuple(extracted.features))   # raises, naming camera and field
             raise InputError("features: a value check failed (see jaxhand.features.feature_value_checks)")
         ok, lost = bool(out["solved_ok"]), bool(out["lost"])
         t3 = time.perf_counter()
-        timings = {"features": t_features, "solve": t_solve, "filter": t3 - t2}
+        timings = {"features": t_features, "solve": t_solve, "filter": t3 - t2 - (t_verify or 0.0)}
+        if t_verify is not None:   # the doubtful finger's searches and solves, and its support
+            timings["verify"] = t_verify
         confidence, lost, image_score, reference = judge_frame(self.frontend, images, filtered, fe_state,
                                                                out["confidence"], lost, self.config.loss,
                                                                state.score_reference)
