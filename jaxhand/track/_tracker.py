@@ -303,12 +303,13 @@ class Tracker:
             if not out["features_ok"] or out["lost"]:  # nothing better to search around
                 break
             q_start = np.clip(q_meas, self._lower, self._upper)
-        t_verify = None
+        t_verify, measured = None, None
         if self._verify_program is not None and out["features_ok"] and not out["lost"]:
             t0 = time.perf_counter()
-            found = self._verify(images, state, ghk, filtered, fe_state, frame, terms)
+            measured = self._support(images, filtered, fe_state)
+            found = self._verify(images, state, ghk, filtered, measured, fe_state, frame, terms)
             if found is not None:
-                (q_meas, filtered, out, ghk_next, fe_state, extracted) = found
+                (q_meas, filtered, out, ghk_next, fe_state, extracted), measured = found, None
                 picked = dataclasses.replace(picked, label="verify")
             t_verify = time.perf_counter() - t0
         if not out["features_ok"]:
@@ -326,7 +327,7 @@ class Tracker:
             filtered, ghk_next = np.asarray(state.q_last), held_filter(state.q_last)
         weak, finger_level, hidden = -1, self.config.hypotheses.finger_level, np.zeros(0, int)
         if (self.config.support.enabled or finger_level) and not lost:
-            support, fingers, hidden = self._support(images, filtered, fe_state)
+            support, fingers, hidden = measured or self._support(images, filtered, fe_state)
             if self.config.support.enabled:
                 confidence = min(confidence, support)
             if confidence < finger_level and fingers:
@@ -356,13 +357,15 @@ class Tracker:
                           q_trusted=filtered if confidence >= self.config.prior.restore_hidden_below
                           else state.q_trusted, unseen=unseen, q_seen=q_seen), report
 
-    def _verify(self, images, state: TrackState, ghk: tuple, q: np.ndarray, fe_state, frame: int, terms: tuple):
+    def _verify(self, images, state: TrackState, ghk: tuple, q: np.ndarray, measured: tuple, fe_state, frame: int,
+                terms: tuple):
         """The best of the doubtful finger's starts (:mod:`jaxhand.track._verify`), each with its own
         features and solve, as ``(q_solved, q_filtered, scalars, filter state, front-end state,
-        extraction)``, where one beats ``q``'s finger supports; else None. The filter forgets the
-        finger's velocity: the jump is a correction, not motion."""
+        extraction)``, where one beats the finger supports of the estimate ``q`` (``measured``: its
+        :meth:`_support`); else None. The filter forgets the finger's
+        velocity: the jump is a correction, not motion."""
         hyp = self.config.hypotheses
-        support, fingers, _ = self._support(images, q, fe_state)
+        support, fingers, _ = measured
         joints = self._flexion.get(min(fingers, key=fingers.get)) if fingers else None
         if support >= hyp.verify_below or joints is None:
             return None
