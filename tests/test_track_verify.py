@@ -13,7 +13,17 @@ from helpers import FunctionFrontEnd, fit_camera
 
 import jaxhand as jh
 from jaxhand.features import features_from_pose
-from jaxhand.track import FilterConfig, HypothesisConfig, ImageSupport, SupportConfig, TrackConfig, Tracker
+from jaxhand.track import (
+    FilterConfig,
+    HypothesisConfig,
+    ImageSupport,
+    SupportConfig,
+    TrackConfig,
+    Tracker,
+    config_from_dict,
+    config_to_dict,
+    config_to_toml,
+)
 from jaxhand.track._flexion import flexion_hinges
 from jaxhand.track._hypotheses import finger_starts, fold_starts
 from jaxhand.track._support import finger_of_frame, finger_of_link
@@ -61,8 +71,12 @@ def test_a_candidate_beats_the_estimate_by_the_margin_without_taking_from_anothe
     assert beats(candidate, {0: 0.9, 1: 0.5}, 0.05) is expected
 
 
-def test_verify_config_errors():
+def test_verify_config_round_trip_and_errors():
     assert HypothesisConfig(verify_below=0.5).verify_margin == 0.05
+    config = TrackConfig(hypotheses=HypothesisConfig(verify_below=0.4, verify_margin=0.1),
+                         support=SupportConfig(enabled=True))
+    assert config_from_dict(config_to_dict(config)).hypotheses == config.hypotheses
+    assert "verify_below = 0.4" in config_to_toml(config)
     with pytest.raises(jh.InputError, match=r"hypotheses\.verify_below: must lie in \[0, 1\]"):
         HypothesisConfig(verify_below=2.0)
     with pytest.raises(jh.InputError, match=r"hypotheses\.verify_margin: must lie in \[0, 1\]"):
