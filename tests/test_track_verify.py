@@ -29,7 +29,7 @@ from jaxhand.track._hypotheses import finger_starts, fold_starts
 from jaxhand.track._support import finger_of_frame, finger_of_link
 from jaxhand.track._verify import beats, fold_rows, verify_starts
 
-INDEX = 14   # hand21's index finger (its MCP frame)
+INDEX, THUMB = 14, 19   # hand21's index finger and thumb (their first frames)
 
 
 def _hand():
@@ -62,13 +62,13 @@ def test_verify_starts_are_the_bends_the_folds_and_the_trusted_finger():
 
 
 @pytest.mark.parametrize("candidate, expected", [
-    ({0: 0.9, 1: 0.80}, True),     # the weakest (0.5 -> 0.8) gains more than 0.05
-    ({0: 0.9, 1: 0.52}, False),    # ... not enough
-    ({0: 0.8, 1: 0.90}, False),    # finger 0 loses 0.1
-    ({}, False),
+    ({0: 0.9, 1: 0.80, 2: 0.3}, True),     # finger 1 (0.5 -> 0.8) gains more than 0.05
+    ({0: 0.9, 1: 0.52, 2: 0.3}, False),    # ... not enough
+    ({0: 0.8, 1: 0.90, 2: 0.3}, False),    # finger 0 loses 0.1
+    ({0: 0.9, 2: 0.3}, False),             # finger 1 not judged
 ])
 def test_a_candidate_beats_the_estimate_by_the_margin_without_taking_from_another_finger(candidate, expected):
-    assert beats(candidate, {0: 0.9, 1: 0.5}, 0.05) is expected
+    assert beats(candidate, {0: 0.9, 1: 0.5, 2: 0.3}, 1, 0.05) is expected
 
 
 def test_verify_config_round_trip_and_errors():
@@ -88,7 +88,8 @@ def test_verify_config_round_trip_and_errors():
 class _FoldFrontEnd(FunctionFrontEnd):
     """Features of the truth where the search starts with the index finger within 25 deg of it,
     else of ``wrong`` (the features back the fold the search starts in); the index's links score
-    0.95 within 5 deg of the truth, else 0.4 (the image does not support the wrong fold)."""
+    0.95 within 5 deg of the truth, else 0.4 (the image does not support the wrong fold); the
+    thumb's links 0.3 throughout (a thumb is no planar finger: the index is searched)."""
 
     def __init__(self, m, rig, truth, wrong, joints):
         near = features_from_pose(m, rig, truth)
@@ -106,7 +107,9 @@ class _FoldFrontEnd(FunctionFrontEnd):
         return float(np.degrees(np.max(np.abs(np.asarray(q)[self.joints] - self.truth[self.joints]))))
 
     def support(self, images, q, state, margin_px=1):
-        score = np.where(finger_of_link(self.m) == INDEX, 0.95 if self._off(q) < 5.0 else 0.4, 0.95)
+        finger = finger_of_link(self.m)
+        score = np.where(finger == INDEX, 0.95 if self._off(q) < 5.0 else 0.4, 0.95)
+        score = np.where(finger == THUMB, 0.3, score)
         return ImageSupport(link_score=score[None])
 
 
@@ -129,7 +132,7 @@ def test_a_wrong_fold_is_searched_again_from_its_own_starts(verify_below):
         assert "verify" not in report.timings_s
         return
     np.testing.assert_allclose(report.q_solved, truth, atol=1e-6)
-    assert report.hypothesis == "verify" and report.confidence == pytest.approx((0.95 - 0.80) / (0.96 - 0.80))
+    assert report.hypothesis == "verify" and report.confidence == 0.0     # the thumb's 0.3 stays
     assert len(frontend.starts) > 3                           # the prediction's search, then one per start
     assert report.timings_s["verify"] > 0.0
     np.testing.assert_allclose(np.asarray(state.ghk.v)[joints], 0.0)   # the jump is not motion

@@ -366,9 +366,11 @@ class Tracker:
         velocity: the jump is a correction, not motion."""
         hyp = self.config.hypotheses
         support, fingers, _ = measured
-        joints = self._flexion.get(min(fingers, key=fingers.get)) if fingers else None
-        if support >= hyp.verify_below or joints is None:
+        planar = [f for f in fingers if f in self._flexion]
+        if support >= hyp.verify_below or not planar:
             return None
+        weak = min(planar, key=fingers.get)
+        joints = self._flexion[weak]
         folds = np.unique(np.asarray(self._folds(jnp.asarray(q, self._dtype))), axis=0)
         starts = verify_starts(q, joints, hyp.finger_deg, self._lower, self._upper, folds, state.q_trusted)
         best, best_value = None, -np.inf
@@ -382,9 +384,9 @@ class Tracker:
             if not (out["features_ok"] and out["solved_ok"]) or out["lost"]:
                 continue
             found = self._support(images, q_meas, extracted.state)[1]
-            if beats(found, fingers, hyp.verify_margin) and min(found.values()) > best_value:
+            if beats(found, fingers, weak, hyp.verify_margin) and found[weak] > best_value:
                 ghk_next = (x, v.at[joints].set(0.0), a.at[joints].set(0.0))
-                best, best_value = (q_meas, filtered, out, ghk_next, extracted.state, extracted), min(found.values())
+                best, best_value = (q_meas, filtered, out, ghk_next, extracted.state, extracted), found[weak]
         return best
 
     def _unseen(self, state: TrackState, features, q) -> tuple[np.ndarray, np.ndarray]:
