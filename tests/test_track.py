@@ -10,6 +10,7 @@ from jaxhand.features import features_from_pose
 from jaxhand.io import FrameSource, read_angles_csv
 from jaxhand.render import make_preset
 from jaxhand.track import FilterConfig, RobustConfig, TrackConfig, Tracker, accuracy_summary, track_sequence
+from jaxhand.track._sequence import _Timings
 
 
 @pytest.fixture(scope="module")
@@ -168,3 +169,15 @@ def test_accuracy_summary_reports_the_palm_pose():
     assert acc["joint_error_deg"]["per_joint_max"]["index_pip"] == pytest.approx(2.0)
     assert acc["joint_error_deg"]["mean"] == pytest.approx(2.0 / 21)   # 21 finger and thumb joints
     assert "palm_rotation_deg" not in accuracy_summary(jh.builtin_model("hand21"), cam, truth[:, 7:], truth[:, 7:])
+
+
+def test_a_stage_that_first_runs_after_many_frames_is_timed_from_there():
+    """A stage absent for a long stretch (the verify step while every frame is lost) counts 0 s
+    there; it first appearing after more frames than its column holds once grown must not fail."""
+    timings = _Timings()
+    for _ in range(600):
+        timings.add({"solve": 1.0})
+    timings.add({"solve": 1.0, "verify": 2.0})
+    steady = timings.steady()
+    assert steady["solve"].shape == steady["verify"].shape == (600,)
+    assert steady["verify"][-1] == 2.0 and not steady["verify"][:-1].any()

@@ -322,10 +322,12 @@ class _Timings:
         self.reinitialisations += bool(report.reinitialised)
 
     def add(self, timings) -> None:
+        """One frame's stage timings; a stage that did not run on a frame (or first runs late:
+        the step after a lost stretch) counts 0 s there."""
         for k, v in timings.items():
             col = self.data.setdefault(k, np.zeros(256))
             if len(col) <= self.n:
-                col = self.data[k] = np.concatenate([col, np.zeros(len(col))])
+                col = self.data[k] = np.concatenate([col, np.zeros(max(len(col), self.n + 1))])
             col[self.n] = v
         self.n += 1
 
