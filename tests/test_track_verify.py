@@ -89,9 +89,10 @@ class _FoldFrontEnd(FunctionFrontEnd):
     """Features of the truth where the search starts with the index finger within 25 deg of it,
     else of ``wrong`` (the features back the fold the search starts in); the index's links score
     0.95 within 5 deg of the truth, else 0.4 (the image does not support the wrong fold); the
-    thumb's links 0.3 throughout (a thumb is no planar finger: the index is searched)."""
+    thumb's links ``thumb`` throughout (where it is the weakest, no finger is searched: a thumb
+    has no flexion chain to bend, and bending a finger the image supports better only moves it)."""
 
-    def __init__(self, m, rig, truth, wrong, joints):
+    def __init__(self, m, rig, truth, wrong, joints, thumb=0.95):
         near = features_from_pose(m, rig, truth)
         far = features_from_pose(m, rig, wrong)
         self.starts = []
@@ -101,7 +102,7 @@ class _FoldFrontEnd(FunctionFrontEnd):
             return near if self._off(q) < 25.0 else far
 
         super().__init__(extract, reextracts=False)
-        self.m, self.truth, self.joints = m, truth, joints
+        self.m, self.truth, self.joints, self.thumb = m, truth, joints, thumb
 
     def _off(self, q):
         return float(np.degrees(np.max(np.abs(np.asarray(q)[self.joints] - self.truth[self.joints]))))
@@ -109,12 +110,12 @@ class _FoldFrontEnd(FunctionFrontEnd):
     def support(self, images, q, state, margin_px=1):
         finger = finger_of_link(self.m)
         score = np.where(finger == INDEX, 0.95 if self._off(q) < 5.0 else 0.4, 0.95)
-        score = np.where(finger == THUMB, 0.3, score)
+        score = np.where(finger == THUMB, self.thumb, score)
         return ImageSupport(link_score=score[None])
 
 
-@pytest.mark.parametrize("verify_below", [0.0, 0.5])
-def test_a_wrong_fold_is_searched_again_from_its_own_starts(verify_below):
+@pytest.mark.parametrize("verify_below, thumb", [(0.0, 0.95), (0.5, 0.95), (0.5, 0.3)])
+def test_a_wrong_fold_is_searched_again_from_its_own_starts(verify_below, thumb):
     m, joints = _hand()
     truth = np.clip(np.asarray(m.q_default, float), m.q_lower, m.q_upper)
     truth[joints] = np.radians([-50.0, -60.0, -50.0])        # hand21 flexes to negative angles
@@ -123,16 +124,16 @@ def test_a_wrong_fold_is_searched_again_from_its_own_starts(verify_below):
     rig = (fit_camera(m, truth),)
     config = TrackConfig(hypotheses=HypothesisConfig(verify_below=verify_below, finger_deg=(20.0, 40.0, -20.0)),
                          support=SupportConfig(enabled=True), filter=FilterConfig(report_solve=True))
-    frontend = _FoldFrontEnd(m, rig, truth, wrong, joints)
+    frontend = _FoldFrontEnd(m, rig, truth, wrong, joints, thumb)
     tracker = Tracker(m, rig, frontend, config)
     state, report = tracker.step(tracker.init(wrong), [None], 0)
-    if not verify_below:   # one search, around the wrong fold: the solve stays there
+    if not verify_below or thumb < 0.4:   # one search, around the wrong fold: the solve stays there
         np.testing.assert_allclose(report.q_solved, wrong, atol=1e-6)
         assert report.hypothesis == "prediction" and report.confidence == 0.0 and len(frontend.starts) == 1
-        assert "verify" not in report.timings_s
+        assert ("verify" in report.timings_s) == bool(verify_below)
         return
     np.testing.assert_allclose(report.q_solved, truth, atol=1e-6)
-    assert report.hypothesis == "verify" and report.confidence == 0.0     # the thumb's 0.3 stays
+    assert report.hypothesis == "verify" and report.confidence == pytest.approx((0.95 - 0.80) / (0.96 - 0.80))
     assert len(frontend.starts) > 3                           # the prediction's search, then one per start
     assert report.timings_s["verify"] > 0.0
     np.testing.assert_allclose(np.asarray(state.ghk.v)[joints], 0.0)   # the jump is not motion

@@ -366,10 +366,9 @@ class Tracker:
         velocity: the jump is a correction, not motion."""
         hyp = self.config.hypotheses
         support, fingers, _ = measured
-        planar = [f for f in fingers if f in self._flexion]
-        if support >= hyp.verify_below or not planar:
+        weak = min(fingers, key=fingers.get) if fingers else None
+        if support >= hyp.verify_below or weak not in self._flexion:   # a thumb: no bends to try
             return None
-        weak = min(planar, key=fingers.get)
         joints = self._flexion[weak]
         folds = np.unique(np.asarray(self._folds(jnp.asarray(q, self._dtype))), axis=0)
         starts = verify_starts(q, joints, hyp.finger_deg, self._lower, self._upper, folds, state.q_trusted)
