@@ -62,13 +62,14 @@ def test_verify_starts_are_the_bends_the_folds_and_the_trusted_finger():
 
 
 @pytest.mark.parametrize("candidate, expected", [
-    ({0: 0.9, 1: 0.80, 2: 0.3}, True),     # finger 1 (0.5 -> 0.8) gains more than 0.05
-    ({0: 0.9, 1: 0.52, 2: 0.3}, False),    # ... not enough
-    ({0: 0.8, 1: 0.90, 2: 0.3}, False),    # finger 0 loses 0.1
-    ({0: 0.9, 2: 0.3}, False),             # finger 1 not judged
+    ({0: 0.9, 1: 0.80}, True),     # the weakest (0.5 -> 0.8) gains more than 0.05
+    ({0: 0.9, 1: 0.52}, False),    # ... not enough
+    ({0: 0.8, 1: 0.90}, False),    # finger 0 loses 0.1
+    ({0: 0.9, 1: 0.9, 2: 0.5}, False),   # a finger the estimate did not judge is now the weakest
+    ({}, False),
 ])
 def test_a_candidate_beats_the_estimate_by_the_margin_without_taking_from_another_finger(candidate, expected):
-    assert beats(candidate, {0: 0.9, 1: 0.5, 2: 0.3}, 1, 0.05) is expected
+    assert beats(candidate, {0: 0.9, 1: 0.5}, 0.05) is expected
 
 
 def test_verify_config_round_trip_and_errors():

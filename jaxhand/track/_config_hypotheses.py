@@ -63,7 +63,8 @@ class HypothesisConfig:
             the finger (axis parallel to its last hinge's) towards the wider side of the hinge's
             range (a hand's flexion); negative: the other way.
         verify_below: host, in [0, 1]. After a frame's estimate whose confidence is below this,
-            the planar finger whose links the image supports least is searched again: from the
+            the finger whose links the image supports least, where it is a planar finger (not a
+            thumb), is searched again: from the
             estimate with that finger bent by each of ``finger_deg``, with each of its hinges
             reflected across its fold, and with its joints at the last trusted pose, each start
             with features searched around itself and a solve without the temporal prior. The

@@ -383,9 +383,9 @@ class Tracker:
             if not (out["features_ok"] and out["solved_ok"]) or out["lost"]:
                 continue
             found = self._support(images, q_meas, extracted.state)[1]
-            if beats(found, fingers, weak, hyp.verify_margin) and found[weak] > best_value:
+            if beats(found, fingers, hyp.verify_margin) and min(found.values()) > best_value:
                 ghk_next = (x, v.at[joints].set(0.0), a.at[joints].set(0.0))
-                best, best_value = (q_meas, filtered, out, ghk_next, extracted.state, extracted), found[weak]
+                best, best_value = (q_meas, filtered, out, ghk_next, extracted.state, extracted), min(found.values())
         return best
 
     def _unseen(self, state: TrackState, features, q) -> tuple[np.ndarray, np.ndarray]:

@@ -39,11 +39,12 @@ def verify_starts(q: np.ndarray, joints: np.ndarray, bends_deg, lower: np.ndarra
     return np.clip(np.concatenate(rows), lower, upper)
 
 
-def beats(candidate: dict[int, float], current: dict[int, float], finger: int, margin: float) -> bool:
-    """Whether the finger supports ``candidate`` beat ``current`` for ``finger``: its support
-    gains at least ``margin``, and no other finger that both judge loses more than ``margin``."""
-    if finger not in candidate or finger not in current:
+def beats(candidate: dict[int, float], current: dict[int, float], margin: float) -> bool:
+    """Whether the finger supports ``candidate`` beat ``current``: its weakest finger is supported
+    more, by at least ``margin``, than the weakest of ``current``, and no finger that both judge
+    loses more than ``margin``."""
+    if not candidate or not current:
         return False
-    others = [f for f in current if f in candidate and f != finger]
-    return (candidate[finger] >= current[finger] + margin
-            and all(candidate[f] >= current[f] - margin for f in others))
+    shared = [f for f in current if f in candidate]
+    return (min(candidate.values()) >= min(current.values()) + margin
+            and all(candidate[f] >= current[f] - margin for f in shared))
