@@ -62,15 +62,15 @@ class HypothesisConfig:
         finger_deg: host, deg. The bends of those starts, each added to every flexion hinge of
             the finger (axis parallel to its last hinge's) towards the wider side of the hinge's
             range (a hand's flexion); negative: the other way.
-        verify_below: host, in [0, 1]. After a frame's estimate whose confidence is below this,
-            the finger whose links the image supports least, where it is a planar finger (not a
-            thumb), is searched again: from the
-            estimate with that finger bent by each of ``finger_deg``, with each of its hinges
-            reflected across its fold, and with its joints at the last trusted pose, each start
-            with features searched around itself and a solve without the temporal prior. The
-            best by finger support replaces the estimate where it wins by ``verify_margin``
-            (:mod:`jaxhand.track._verify`; 0: off). All starts share features searched around
-            the prediction, so a finger folded the wrong way keeps the features of that fold.
+        verify_below: host, in [0, 1]. After a frame's estimate whose image support (the
+            support rule's confidence) is below this, the finger whose links the image supports
+            least, where it is a planar finger (not a thumb), is searched again: from the estimate
+            with that finger bent by each of ``finger_deg``, with each of its hinges reflected
+            across its fold, and with its joints at the last trusted pose, each start with
+            features searched around itself and a solve without the temporal prior. The best by
+            finger support replaces the estimate where it wins by ``verify_margin``
+            (:mod:`jaxhand.track._verify`; 0: off). All other starts share features searched
+            around the prediction, so a finger folded the wrong way keeps the features of that fold.
         verify_margin: host, in [0, 1]. How much more support the weakest finger must get (and
             the most any other finger may lose) for a verified start to replace the estimate.
     """

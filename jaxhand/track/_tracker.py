@@ -12,7 +12,8 @@ Per frame k (thesis fig. 1.2):
 5. score the frame: residual RMS (px) and the share of valid features give a confidence in
    [0, 1] and a loss-of-track flag, lowered by the front end's image score of the estimate
    where it gives one (:func:`~jaxhand.track.judge_frame`). A failed or non-finite solve keeps
-   the prediction.
+   the prediction. With :attr:`HypothesisConfig.verify_below`, a finger the image hardly
+   supports is first searched again from starts of its own (:mod:`jaxhand.track._verify`).
 
 Steps 3-5 run as one compiled program (:mod:`jaxhand.track._compiled`); the loop over frames is
 host Python.
