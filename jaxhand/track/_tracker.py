@@ -363,8 +363,8 @@ class Tracker:
         """The best of the doubtful finger's starts (:mod:`jaxhand.track._verify`), each with its own
         features and solve, as ``(q_solved, q_filtered, scalars, filter state, front-end state,
         extraction)``, where one beats the finger supports of the estimate ``q`` (``measured``: its
-        :meth:`_support`); else None. The filter forgets the finger's
-        velocity: the jump is a correction, not motion."""
+        :meth:`_support`); else None. The filter forgets the finger's velocity: the jump is a
+        correction, not motion."""
         hyp = self.config.hypotheses
         support, fingers, _ = measured
         weak = min(fingers, key=fingers.get) if fingers else None
