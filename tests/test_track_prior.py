@@ -105,6 +105,32 @@ def test_information_weight_counts_the_measured_terms_beside_the_features(proble
         np.asarray(without.weight) @ np.eye(m.n_q)[pip])
 
 
+
+def test_information_terms_scales_the_measured_terms_share(problem):
+    seq, _ = problem
+    m, q = seq.model, jnp.asarray(seq.q[3])
+    feats = tuple(features_from_pose(m, seq.cameras, q))
+    fractions = jh.FitConfig().link_fractions
+    pip = m.q_lookup("index_pip")
+
+    def term(x):   # slope 100 x along index_pip, as above
+        return 50.0 * x[pip:pip + 1] ** 2
+
+    def weight(share):
+        priors = _Priors.of(m, PriorConfig(temporal_sigma_deg=10.0, information_ratio=1.0, information_terms=share))
+        return np.asarray(priors.at(m, seq.cameras, feats, q, q, fractions, (term,))[0].weight)
+
+    features_only = np.asarray(_Priors.of(m, PriorConfig(temporal_sigma_deg=10.0, information_ratio=1.0))
+                               .at(m, seq.cameras, feats, q, q, fractions)[0].weight)
+    np.testing.assert_allclose(weight(0.0), features_only, rtol=1e-12, atol=1e-12)
+    _, J = residuals_and_jacobian(q, ResidualArgs(model=m, cameras=seq.cameras, features=feats,
+                                                      fractions=fractions))
+    J_term = np.zeros((1, m.n_q))
+    J_term[0, pip] = 100.0 * float(q[pip])
+    base = _Priors.of(m, PriorConfig(temporal_sigma_deg=10.0, information_ratio=1.0))
+    expected = information_weight(base.temporal_weight, J.T @ J + 0.25 * J_term.T @ J_term, 1.0)
+    np.testing.assert_allclose(weight(0.25), np.asarray(expected), rtol=1e-9, atol=1e-12)
+
 def test_temporal_merit_counts_the_prior_residuals_beside_the_features(problem):
     seq, feats = problem
     m, q = seq.model, jnp.asarray(seq.q[3])

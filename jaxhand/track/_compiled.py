@@ -107,6 +107,7 @@ class _Priors(eqx.Module):
     fixed: tuple
     temporal_weight: Float[Array, " nq"] | None
     information_ratio: Float[Array, ""] | None
+    information_terms: Float[Array, ""] | None = None
     temporal_merit: Float[Array, ""] | None = None
     rest_weight: Float[Array, " nq"] | None = None
     rest_pose: Float[Array, " nq"] | None = None
@@ -131,7 +132,9 @@ class _Priors(eqx.Module):
             rest = np.zeros(model.n_q)
             rest[thumb] = 1.0 / np.radians(config.thumb_rest_sigma_deg)
             rest = jnp.asarray(rest, dtype)
-        return _Priors(fixed=tuple(fixed), temporal_weight=weight, information_ratio=ratio, temporal_merit=merit,
+        terms = jnp.asarray(config.information_terms, dtype) if ratio is not None else None
+        return _Priors(fixed=tuple(fixed), temporal_weight=weight, information_ratio=ratio, information_terms=terms,
+                       temporal_merit=merit,
                        rest_weight=rest, rest_pose=None if rest is None else jnp.asarray(model.q_default, dtype))
 
     def without_temporal(self) -> _Priors:
@@ -153,7 +156,7 @@ class _Priors(eqx.Module):
         prior, each information-weighted by the features (with the front end's weights) and the
         frame's ``measured`` terms (bound priors of image measurements, e.g. the silhouette) at
         ``q_start`` when :attr:`information_ratio` is set: what a term sees (a finger's length)
-        is the image's to say."""
+        is the image's to say, as far as :attr:`information_terms` counts it."""
         weighted = [(self.temporal_weight, q_pred), (self.rest_weight, self.rest_pose)]
         weighted = [(w, centre) for w, centre in weighted if w is not None]
         if not weighted:
@@ -164,7 +167,7 @@ class _Priors(eqx.Module):
             information = J.T @ J
             for term in measured:
                 J_term = jax.jacfwd(term)(q_start)
-                information = information + J_term.T @ J_term
+                information = information + self.information_terms * (J_term.T @ J_term)
             weighted = [(information_weight(w, information, self.information_ratio), centre) for w, centre in weighted]
         return tuple(TemporalPrior(q_pred=centre, weight=w) for w, centre in weighted) + self.fixed
 

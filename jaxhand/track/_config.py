@@ -169,6 +169,9 @@ class PriorConfig:
             the frame's features at the start of the solve (:func:`~jaxhand.priors.information_weight`):
             along a direction in q that the images see with ``l`` times the prior's information its
             weight is ``ratio / (ratio + l)`` of the full one (0: the fixed sigmas everywhere).
+        information_terms: traced, unitless. The share of the frame's measured terms' information
+            (the silhouette's) that counts in that weighting beside the features' (1: all of it;
+            0: the features' alone, so a direction only the silhouette sees keeps the prior).
         temporal_merit: traced, unitless. With several starts (``hypotheses``), each start's merit
             also counts its pose's fixed-sigma temporal residuals ``(q - q_pred) / sigma`` times this,
             beside the feature residuals (:func:`~jaxhand.track._hypotheses.image_merit`): the choice
@@ -210,6 +213,7 @@ class PriorConfig:
     temporal_sigma_deg: float | None = 0.0
     temporal_sigma_mm: float | None = 0.0
     information_ratio: float | None = 0.0
+    information_terms: float | None = 1.0
     temporal_merit: float | None = 0.0
     temporal_min_confidence: float | None = 0.0
     restore_hidden_below: float | None = 0.0
