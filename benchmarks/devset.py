@@ -17,6 +17,8 @@ seeds: two settings whose ranges overlap have not been told apart. Prints a tabl
     .venv/bin/python benchmarks/devset.py --frames 30 --no-json             # quick look
     .venv/bin/python benchmarks/devset.py --settings robust-limits --extra '{"support": {"judge_power": 2}}'
     .venv/bin/python benchmarks/devset.py --settings robust-limits --start-deg 2 --seeds 3   # the spread from chance
+    .venv/bin/python benchmarks/devset.py --only open_close --settings robust-temporal --no-exact --per-frame \
+        --overlays /tmp/oc   # each frame's error, confidence and winning start; frames over 8 px drawn
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import sys
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -35,6 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import REPO, RESULTS, add_runtime_option, apply_runtime, environment, format_table, write_json  # noqa: E402
 
 from jaxhand.io import load_devset, open_frames  # noqa: E402
+from jaxhand.kinematics import project_pose  # noqa: E402
 from jaxhand.track import (  # noqa: E402
     PRESETS,
     ExactFrontEnd,
@@ -46,6 +50,7 @@ from jaxhand.track import (  # noqa: E402
     image_front_end,
     loss_flag_quality,
 )
+from jaxhand.viz import draw_view  # noqa: E402
 
 SEQUENCES = ("open_close", "index_over_middle", "thumb_opposition", "fast_spread", "wave_two_cameras")
 
@@ -136,7 +141,33 @@ def start_pose(seq, start_deg: float, seed: int) -> np.ndarray:
     return np.clip(q0, np.asarray(seq.model.q_lower), np.asarray(seq.model.q_upper))
 
 
-def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: float = 0.5, q0=None):
+#: a frame whose mean tip error exceeds this (px) is drawn by ``--overlays`` (the loss flag's "bad" frames)
+BAD_PX = 8.0
+
+
+def frame_line(seq, k: int, q, rep, tip_px: float, moving: np.ndarray) -> str:
+    """One frame of ``--per-frame``: mean error over the moving joints (deg), mean tip error
+    (px), confidence, L when flagged lost, the start that won, and the two joints furthest off."""
+    e = np.degrees(np.abs(np.asarray(q) - np.asarray(seq.truth.q[k])))
+    e[~moving] = 0.0
+    worst = " ".join(f"{seq.model.q_names[i]} {e[i]:.0f}" for i in np.argsort(-e)[:2])
+    return (f"  {k:4d}  {e[moving].mean():6.2f} deg  {tip_px:6.1f} px  conf {rep.confidence:.2f} "
+            f"{'L' if rep.lost else ' '} {rep.hypothesis:10s} {worst}")
+
+
+def write_overlay(path: Path, seq, image, k: int, q) -> None:
+    """The frame (first camera) beside the true pose (green) and the estimate (red) drawn over it."""
+    m, cam = seq.model, seq.truth.cameras[0]
+    bgr = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    panels = [bgr]
+    for pose, colour in ((seq.truth.q[k], (0, 255, 0)), (q, (0, 0, 255))):
+        panels.append(draw_view(bgr.copy(), project_pose(m, cam, pose), colour, outline=True))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(path), cv2.resize(np.concatenate(panels, 1), None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST))
+
+
+def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: float = 0.5, q0=None,
+          per_frame: bool = False, overlays: Path | None = None):
     m, cams = seq.model, seq.truth.cameras
     n = len(seq.truth.q) if frames is None else min(frames, len(seq.truth.q))
     if exact:
@@ -147,7 +178,8 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         frontend = image_front_end(m, cams, config.image, images, n)
     tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
     state = tracker.init(seq.truth.q[0] if q0 is None else q0)
-    filt, raw, lost, times, conf, lost_flags = [], [], 0, [], [], []
+    filt, raw, lost, times, conf, lost_flags, labels = [], [], 0, [], [], [], []
+    moving = moving_joints(seq)
     blank = [np.zeros(c.size[::-1], np.uint8) for c in cams] if exact else None
     it = zip(*images) if images is not None else iter(lambda: None, 0)
     for k in range(n):
@@ -156,13 +188,19 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         t0 = time.perf_counter()
         state, rep = tracker.step(state, ims, k)
         times.append(time.perf_counter() - t0)
+        if per_frame or overlays is not None:
+            tip = float(frame_tip_error_px(m, cams, np.asarray(rep.q_filtered)[None], seq.truth.q[k][None])[0])
+            if per_frame:
+                print(frame_line(seq, k, rep.q_filtered, rep, tip, moving), flush=True)
+            if overlays is not None and not exact and tip > BAD_PX:
+                write_overlay(overlays / f"{k:04d}.png", seq, ims[0], k, rep.q_filtered)
+        labels.append(rep.hypothesis)
         filt.append(rep.q_filtered)
         raw.append(rep.q_solved)
         lost += bool(rep.lost)
         conf.append(rep.confidence)
         lost_flags.append(rep.lost)
     qt = np.asarray(seq.truth.q[:n])
-    moving = moving_joints(seq)
     out = {"frames": n, "lost": lost, "fps": 1.0 / float(np.median(times[1:])) if n > 1 else float("nan")}
     for label, q in (("filtered", filt), ("raw", raw)):
         e = np.degrees(np.abs(np.asarray(q) - qt))[:, moving]
@@ -172,6 +210,8 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
     out["longest_run_over_15deg"] = int(max((_longest_run(col) for col in err.T), default=0))
     out["per_frame_tip_px"] = frame_tip_error_px(m, cams, np.asarray(filt), qt).tolist()
     out["per_frame_confidence"], out["per_frame_lost"] = [float(c) for c in conf], [bool(x) for x in lost_flags]
+    out["per_frame_mean_deg"] = np.degrees(np.abs(np.asarray(filt) - qt))[:, moving].mean(1).tolist()
+    out["per_frame_start"] = labels
     out["loss_flag"] = loss_flag_quality(out["per_frame_tip_px"], conf, lost_flags)
     return out
 
@@ -205,6 +245,11 @@ def main(argv=None) -> None:
     p.add_argument("--seeds", type=int, default=1,
                    help="runs per sequence and setting, each from its own seeded start (needs --start-deg); the "
                         "spread of their errors says how much of a difference between settings is chance")
+    p.add_argument("--per-frame", action="store_true",
+                   help="print every frame: error, tip px, confidence, lost, the winning start, the worst joints")
+    p.add_argument("--overlays", type=Path, default=None,
+                   help=f"a folder: for each image run, the frames over {BAD_PX:g} px drawn (truth green, estimate "
+                        "red) under <folder>/<sequence>_<setting>_<seed>/")
     add_runtime_option(p)
     args = p.parse_args(argv)
     if args.seeds < 1 or (args.seeds > 1 and not args.start_deg > 0):
@@ -220,7 +265,11 @@ def main(argv=None) -> None:
         for setting in args.settings.split(","):
             config = TrackConfig().merged(SETTINGS[setting]).merged(args.extra)
             for exact, seed in itertools.product((False,) if args.no_exact else (False, True), range(args.seeds)):
-                r = track(seq, config, exact, args.frames, q0=start_pose(seq, args.start_deg, seed))
+                if args.per_frame:
+                    print(f"{name} {setting} {'exact' if exact else 'image'} seed {seed}:", flush=True)
+                where = None if args.overlays is None else args.overlays / f"{name}_{setting}_{seed}"
+                r = track(seq, config, exact, args.frames, q0=start_pose(seq, args.start_deg, seed),
+                          per_frame=args.per_frame, overlays=where)
                 rec = {"sequence": name, "setting": setting, "features": "exact" if exact else "image",
                        "start_deg": args.start_deg, "seed": seed, **r, "config": config_to_dict(config)}
                 records.append(rec)
