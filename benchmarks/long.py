@@ -76,7 +76,8 @@ VARIANTS = {
     # the DIP-PIP coupling in every solve (TrackConfig.preset("coupled")): meets issue 13's target alone
     "coupled": Variant(PRESETS["coupled"]),
     "robust": Variant(PRESETS["robust"]),   # six starts per frame and the silhouette term (slow)
-    "robust-limits": Variant(PRESETS["robust-limits"]),   # the preset recommended for images jaxhand did not draw
+    "robust-limits": Variant(PRESETS["robust-limits"]),
+    "robust-temporal": Variant(PRESETS["robust-temporal"]),   # the preset recommended for images jaxhand did not draw
 }
 
 
