@@ -105,7 +105,6 @@ def test_information_weight_counts_the_measured_terms_beside_the_features(proble
         np.asarray(without.weight) @ np.eye(m.n_q)[pip])
 
 
-
 def test_information_terms_scales_the_measured_terms_share(problem):
     seq, _ = problem
     m, q = seq.model, jnp.asarray(seq.q[3])
@@ -130,6 +129,7 @@ def test_information_terms_scales_the_measured_terms_share(problem):
     base = _Priors.of(m, PriorConfig(temporal_sigma_deg=10.0, information_ratio=1.0))
     expected = information_weight(base.temporal_weight, J.T @ J + 0.25 * J_term.T @ J_term, 1.0)
     np.testing.assert_allclose(weight(0.25), np.asarray(expected), rtol=1e-9, atol=1e-12)
+
 
 def test_temporal_merit_counts_the_prior_residuals_beside_the_features(problem):
     seq, feats = problem
