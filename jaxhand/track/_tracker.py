@@ -328,7 +328,7 @@ class Tracker:
             filtered, ghk_next = np.asarray(state.q_last), held_filter(state.q_last)
         weak, finger_level, hidden = -1, self.config.hypotheses.finger_level, np.zeros(0, int)
         if (self.config.support.enabled or finger_level) and not lost:
-            support, fingers, hidden = measured or self._support(images, filtered, fe_state)
+            support, fingers, hidden = measured if measured is not None else self._support(images, filtered, fe_state)
             if self.config.support.enabled:
                 confidence = min(confidence, support)
             if confidence < finger_level and fingers:
