@@ -7,7 +7,9 @@ joints (those whose truth moves), of the reported estimate (``q_filtered``) and 
 (``q_solved``) and their mean tip error (px), frames flagged lost, frames/s of the tracker step,
 the longest stretch of frames in which one moving joint stays more than 15 deg off, and the loss
 flag's quality (the share of frames with a mean tip error over 8 px that are flagged lost or
-below 0.5 confidence, and of those under 3 px). With ``--start-deg`` and ``--seeds`` each run
+below 0.5 confidence, and of those under 3 px), and the share of (frame, joint) entries the
+features did not see (:func:`jaxhand.track.seen_summary`) with the error of the seen and the
+unseen entries apart. With ``--start-deg`` and ``--seeds`` each run
 starts off the true pose by seeded noise, and a second table gives the median and range over
 seeds: two settings whose ranges overlap have not been told apart. Prints a table and writes
 ``benchmarks/results/devset.json`` (after each run, so an interrupted run keeps what it measured).
@@ -49,6 +51,7 @@ from jaxhand.track import (  # noqa: E402
     frame_tip_error_px,
     image_front_end,
     loss_flag_quality,
+    seen_summary,
 )
 from jaxhand.viz import draw_view  # noqa: E402
 
@@ -178,7 +181,7 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         frontend = image_front_end(m, cams, config.image, images, n)
     tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
     state = tracker.init(seq.truth.q[0] if q0 is None else q0)
-    filt, raw, lost, times, conf, lost_flags, labels = [], [], 0, [], [], [], []
+    filt, raw, lost, times, conf, lost_flags, labels, seen = [], [], 0, [], [], [], [], []
     moving = moving_joints(seq)
     blank = [np.zeros(c.size[::-1], np.uint8) for c in cams] if exact else None
     it = zip(*images) if images is not None else iter(lambda: None, 0)
@@ -195,6 +198,7 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
             if overlays is not None and not exact and tip > BAD_PX:
                 write_overlay(overlays / f"{k:04d}.png", seq, ims[0], k, rep.q_filtered)
         labels.append(rep.hypothesis)
+        seen.append(rep.seen)
         filt.append(rep.q_filtered)
         raw.append(rep.q_solved)
         lost += bool(rep.lost)
@@ -213,6 +217,7 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
     out["per_frame_mean_deg"] = np.degrees(np.abs(np.asarray(filt) - qt))[:, moving].mean(1).tolist()
     out["per_frame_start"] = labels
     out["loss_flag"] = loss_flag_quality(out["per_frame_tip_px"], conf, lost_flags)
+    out["seen"] = seen_summary(m, np.asarray(seen), np.asarray(filt), qt)
     return out
 
 
@@ -227,6 +232,10 @@ def _longest_run(flags) -> int:
 
 def _share(x) -> str:
     return "-" if x is None else f"{100 * x:.0f}%"
+
+
+def _deg(x) -> str:
+    return "-" if x is None else f"{x:.2f}"
 
 
 def main(argv=None) -> None:
@@ -279,10 +288,12 @@ def main(argv=None) -> None:
                              f"{r['filtered_max_deg']:.1f}", f"{r['raw_mean_deg']:.2f}", f"{r['raw_max_deg']:.1f}",
                              str(r["lost"]), f"{r['fps']:.1f}", str(r["longest_run_over_15deg"]),
                              _share(r["loss_flag"]["flagged_bad"]),
-                             _share(r["loss_flag"]["flagged_good"])])
+                             _share(r["loss_flag"]["flagged_good"]), _share(r["seen"]["unseen_entries_share"]),
+                             _deg(r["seen"]["error_deg_seen"]) + " / " + _deg(r["seen"]["error_deg_unseen"])])
                 print(" | ".join(rows[-1]), flush=True)
     print(format_table(rows, ["sequence", "setting", "features", "seed", "mean", "max", "raw mean", "raw max", "lost",
-                              "fps", "frames >15° in a row", "flagged >8px", "flagged <3px"]))
+                              "fps", "frames >15° in a row", "flagged >8px", "flagged <3px", "unseen",
+                              "error seen / unseen"]))
     print(format_table(pooled_flag_rows(records), ["setting", "features", "seed", "sequences",
                                                    "frames >8px flagged", "frames <3px flagged"]))
     if args.seeds > 1:

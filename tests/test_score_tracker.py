@@ -160,7 +160,7 @@ def test_loss_flag_quality_counts():
 
 def test_summary_reports_the_loss_flag_on_a_devset_run(opposition, tmp_path):
     """track_sequence with a dev-set truth.json's poses, the image score on: summary.json holds
-    the loss flag's quality (golden numbers of the first 6 frames)."""
+    the loss flag's quality (golden numbers of the first 6 frames) and which joints were seen."""
     seq = opposition
     sources = open_frames(list(seq.frame_folders), fps=seq.fps)
     config = TrackConfig(image=AUTO)
@@ -170,6 +170,10 @@ def test_summary_reports_the_loss_flag_on_a_devset_run(opposition, tmp_path):
     assert flag == summary["loss_flag"]
     assert flag == {"bad_px": 8.0, "good_px": 3.0, "frames_bad": 0, "flagged_bad": None, "frames_good": 6,
                     "flagged_good": 0.0, "frames_flagged": 0}
+    # every joint seen on these open-hand frames: the seen entries' error is the whole mean
+    seen = json.loads((tmp_path / "summary.json").read_text())["seen"]
+    assert seen["mostly_unseen"] == [] and seen["unseen_entries_share"] == 0.0 and seen["error_deg_unseen"] is None
+    assert seen["error_deg_seen"] == pytest.approx(summary["accuracy_filtered"]["joint_error_deg"]["mean"], rel=1e-9)
 
 
 class _FixedScore(AbstractFrontEnd):

@@ -8,8 +8,9 @@
   analysis) and :class:`ExactFrontEnd` (exact features of a known truth, for experiments);
 - :class:`Tracker` (``init``, ``step``), :class:`TrackState`, :class:`StepReport`;
 - :func:`track_sequence` (frames from disk to ``angles.csv``, ``summary.json``, overlay video)
-  and :func:`accuracy_summary`; :func:`frame_score`, the loss rule, and :func:`judge_frame`, its
-  combination with the front end's image score.
+  and :func:`accuracy_summary`; :func:`seen_summary`, which joints the frames saw
+  (:attr:`StepReport.seen`) and how far off the unseen ones were; :func:`frame_score`, the loss
+  rule, and :func:`judge_frame`, its combination with the front end's image score.
 """
 
 from ._compiled import reweight
@@ -36,6 +37,7 @@ from ._frontend import (
 )
 from ._presets import PRESETS
 from ._score import confidence_of, frame_score, judge_frame
+from ._seen import seen_summary
 from ._sequence import accuracy_summary, frame_tip_error_px, loss_flag_quality, track_sequence
 from ._state import StepReport, TrackState
 from ._support import ImageSupport, SupportConfig
@@ -47,6 +49,6 @@ __all__ = [
     "config_to_dict", "config_from_dict", "config_to_toml", "save_track_config", "load_track_config",
     "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd", "image_front_end",
     "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary", "frame_tip_error_px",
-    "loss_flag_quality",
+    "loss_flag_quality", "seen_summary",
     "frame_score", "confidence_of", "judge_frame", "reweight",
 ]

@@ -36,6 +36,7 @@ from ..viz import VideoWriter, draw_view, plot_joint_angles
 from ._config import TrackConfig, config_to_dict
 from ._frontend import AbstractFrontEnd, ImageFrontEnd, image_front_end
 from ._landmarks import LandmarkRun
+from ._seen import scored_joints, seen_summary
 from ._state import StepReport
 from ._tracker import Tracker
 
@@ -88,7 +89,7 @@ def accuracy_summary(model: Model, cameras: Camera | Sequence[Camera], q_est: Fl
     q_est, q_truth = np.asarray(q_est), np.asarray(q_truth)
     tip_err = np.linalg.norm(np.asarray(_tips_px(model, rig, q_est)) - np.asarray(_tips_px(model, rig, q_truth)),
                              axis=-1)   # (cams, frames, tips): one batched call, not one per frame
-    joints = [i for i, k in enumerate(model.q_kinds) if k == "angle" and not model.q_names[i].startswith("palm")]
+    joints = scored_joints(model)
     out = {
         "joint_error_deg": {"mean": float(err_user[:, joints].mean()), "max": float(err_user[:, joints].max()),
                             "per_joint_mean": {model.q_names[i]: float(err_user[:, i].mean()) for i in joints},
@@ -374,7 +375,8 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
             timings.add(rep.timings_s)
             timings.tally(rep)
             writer.write(rep.frame, rep.time_s, rep.q_filtered, rep.confidence, rep.lost, q_pred=rep.q_pred,
-                         q_solved=rep.q_solved, cost=rep.cost, rms_px=rep.rms_px, iterations=rep.iterations, **marks)
+                         q_solved=rep.q_solved, cost=rep.cost, rms_px=rep.rms_px, iterations=rep.iterations,
+                         **marks, **({} if rep.seen is None else {"seen": rep.seen}))
             if video:
                 tile = _overlay(model, cameras, images, rep)
                 if lm is not None:
@@ -454,7 +456,9 @@ def _summary(model, cameras, tracker, state, writer, out, fps, config, truth, q0
             summary["accuracy_solved"] = accuracy_summary(model, cameras, q_s, q_t)
             summary["loss_flag"] = loss_flag_quality(frame_tip_error_px(model, cameras, q_f, q_t),
                                                      cols["confidence"], lost)
-        plot_joint_angles(model, times, q_f, out / "angles.png", q_truth=q_t, q_raw=q_s)
+        if "seen" in cols:
+            summary["seen"] = seen_summary(model, cols["seen"], q_f, q_t)
+        plot_joint_angles(model, times, q_f, out / "angles.png", q_truth=q_t, q_raw=q_s, seen=cols.get("seen"))
     radius = state.frontend_state.radius_mm if isinstance(state.frontend_state, ImageState) else None
     if radius is not None:   # the front end's phalanx width estimate (ImageConfig.width_gain)
         summary["link_radius_mm_estimated"] = dict(zip(model.link_names, np.asarray(radius, float).tolist()))

@@ -76,3 +76,4 @@ class StepReport:
     hypothesis: str = "prediction"   # the kind of start that won (jaxhand.track._hypotheses.LABELS)
     starts: int = 1                  # the starts solved
     reinitialised: bool = False      # the first frame not lost after a lost one
+    seen: np.ndarray | None = None   # per q entry, the share of image information the features give it (_seen)

@@ -52,6 +52,7 @@ from ._hypotheses import (
     too_far,
 )
 from ._score import held_filter, judge_frame
+from ._seen import SeenProgram
 from ._state import StepReport, TrackState
 from ._support import (
     finger_of_frame,
@@ -132,6 +133,7 @@ class Tracker:
         self._rest_keep = None if config.hypotheses.rest_fingers else np.isin(
             np.arange(model.n_q), [model.q_index[f] for f in fingers])
         self._moves = moved_links(model)
+        self._seen = SeenProgram(model, self.cameras, config.fit.link_fractions)
         self._is_angle = np.asarray(model.is_angle)
         self._joint_angle = joint_angles(model)
         # a doubtful finger's starts, each solved without the temporal prior (HypothesisConfig.verify_below)
@@ -341,6 +343,9 @@ class Tracker:
             timings["templates"] = time.perf_counter() - t3
         if not lost:
             self.frontend.observe(images, filtered)
+        t4 = time.perf_counter()   # which joints the final features saw, at the reported pose
+        seen = self._seen(self._feature_arrays(extracted.features), filtered)
+        timings["seen"] = time.perf_counter() - t4
         diag = extracted.diagnostics
         timings.update({f"features.{k}": v for k, v in diag.timings_s.items()})
         report = StepReport(frame=frame, time_s=time_s, q_pred=np.asarray(q_pred_host), q_solved=q_meas,
@@ -348,7 +353,7 @@ class Tracker:
                             iterations=int(out["iterations"]), status=STATUS_NAMES[int(out["status"])],
                             valid_share=out["valid_share"], confidence=confidence, lost=lost,
                             timings_s=timings, diagnostics=diag, image_score=image_score, hypothesis=picked.label,
-                            starts=picked.starts, reinitialised=state.lost and not lost)
+                            starts=picked.starts, reinitialised=state.lost and not lost, seen=seen)
         ghk_next = jax.tree_util.tree_unflatten(self._ghk_tree, ghk_next)
         unseen, q_seen = self._unseen(state, extracted.features, filtered) if hold and not lost else (
             state.unseen, state.q_seen)
