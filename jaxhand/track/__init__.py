@@ -10,7 +10,8 @@
 - :func:`track_sequence` (frames from disk to ``angles.csv``, ``summary.json``, overlay video)
   and :func:`accuracy_summary`; :func:`seen_summary`, which joints the frames saw
   (:attr:`StepReport.seen`) and how far off the unseen ones were; :func:`frame_score`, the loss
-  rule, and :func:`judge_frame`, its combination with the front end's image score.
+  rule, :func:`judge_frame`, its combination with the front end's image score, and
+  :func:`reported_confidence`, the confidence as a frame reports it.
 """
 
 from ._compiled import reweight
@@ -36,7 +37,7 @@ from ._frontend import (
     image_front_end,
 )
 from ._presets import PRESETS
-from ._score import confidence_of, frame_score, judge_frame
+from ._score import confidence_of, frame_score, judge_frame, reported_confidence
 from ._seen import seen_summary
 from ._sequence import accuracy_summary, frame_tip_error_px, loss_flag_quality, track_sequence
 from ._state import StepReport, TrackState
@@ -50,5 +51,5 @@ __all__ = [
     "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd", "image_front_end",
     "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary", "frame_tip_error_px",
     "loss_flag_quality", "seen_summary",
-    "frame_score", "confidence_of", "judge_frame", "reweight",
+    "frame_score", "confidence_of", "judge_frame", "reported_confidence", "reweight",
 ]

@@ -123,6 +123,11 @@ class LossConfig:
         score_relative: host. Apply those levels to the score over the first scored frame's
             (tracking starts from a given pose): the score a right pose reaches differs with the
             view, the foreground model and what the model lacks (a palm, clutter).
+        doubt_level: host, in (0, 1). The tracker's own confidence that is reported as 0.5
+            (:func:`~jaxhand.track.reported_confidence`: piecewise linear, [0, doubt_level] onto
+            [0, 0.5] and [doubt_level, 1] onto [0.5, 1]), so that a frame reported under 0.5 is one
+            to doubt; 0.5 reports the confidence as it is. The tracker's own decisions (restarts,
+            searches) keep using its own confidence.
     """
 
     rms_scale_px: float = 2.0
@@ -134,6 +139,7 @@ class LossConfig:
     score_lost: float = 0.801
     score_good: float = 0.981
     score_relative: bool = True
+    doubt_level: float = 0.5
 
     def __post_init__(self):
         need(self.rms_scale_px > 0, "loss.rms_scale_px", f"must be > 0, got {self.rms_scale_px}")
@@ -148,6 +154,7 @@ class LossConfig:
         flag(self.score_relative, "loss.score_relative")
         need(0.0 <= self.score_lost < self.score_good <= 1.0, "loss.score_lost",
               f"need 0 <= score_lost < score_good <= 1, got {self.score_lost}, {self.score_good}")
+        need(0.0 < self.doubt_level < 1.0, "loss.doubt_level", f"must lie in (0, 1), got {self.doubt_level}")
 
 
 def _off(value) -> float:

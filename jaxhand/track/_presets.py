@@ -41,6 +41,9 @@ __all__ = ["PRESETS"]
 #: at the last trusted pose), each with features searched around itself, and the best by finger
 #: support replaces it (``hypotheses.verify_below``): a finger folded the wrong way keeps the
 #: features of its fold (benchmarks/README.md, 2026-12-05, sixth session).
+#: Its confidence is reported with 0.8 of its own at 0.5 (``loss.doubt_level``): on the dev set
+#: the frames far off lie between its 0.5 and 0.8, the right ones mostly above (benchmarks/README.md,
+#: 2026-12-06, second session).
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -68,5 +71,6 @@ PRESETS["robust-temporal"] = {**PRESETS["robust-limits"],
                               "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "prediction_margin": 0.05,
                                              "verify_below": 0.5},
                               "support": {**PRESETS["robust-limits"]["support"], "whole_lost": 0.5, "whole_good": 0.8},
+                              "loss": {**PRESETS["robust-limits"]["loss"], "doubt_level": 0.8},
                               "image": {**PRESETS["robust-limits"]["image"], "search": {"zero_mean": True},
                                         "score": {"silhouette": {"side_edge_px": 4.0}}}}

@@ -9,7 +9,7 @@ import numpy as np
 from ..score import ConfidenceConfig, frame_confidence
 from ._config import LossConfig, TrackConfig
 
-__all__ = ["frame_score", "confidence_of", "judge_frame", "held_filter"]
+__all__ = ["frame_score", "confidence_of", "judge_frame", "held_filter", "reported_confidence"]
 
 
 def frame_score(rms_px, valid_share, rms_scale_px, min_valid_share, max_rms_px, xp=jnp, share_good=1.0):
@@ -24,6 +24,16 @@ def frame_score(rms_px, valid_share, rms_scale_px, min_valid_share, max_rms_px, 
     conf = xp.where(xp.isfinite(conf), conf, 0.0)
     lost = (valid_share < min_valid_share) | (rms_px > max_rms_px) | ~xp.isfinite(rms_px)
     return conf, lost
+
+
+def reported_confidence(confidence: float, doubt_level: float = 0.5) -> float:
+    """The confidence a frame reports: the tracker's own ``confidence`` (in [0, 1]) mapped
+    piecewise linearly so that ``doubt_level`` becomes 0.5 (:attr:`LossConfig.doubt_level`);
+    monotone, 0 and 1 kept, the identity at 0.5."""
+    c = min(max(float(confidence), 0.0), 1.0)
+    if c <= doubt_level:
+        return 0.5 * c / doubt_level
+    return 0.5 + 0.5 * (c - doubt_level) / (1.0 - doubt_level)
 
 
 def confidence_of(rms_px: float, valid_share: float, config: LossConfig | TrackConfig) -> tuple[float, bool]:

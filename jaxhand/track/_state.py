@@ -29,7 +29,8 @@ class TrackState:
         lost: whether the last frame was lost (the next frames then recover, :attr:`HypothesisConfig.recover`).
         weak_finger: the finger the image supported least on the last frame, when its confidence was
             under :attr:`HypothesisConfig.finger_level` (the next frame bends it); -1: none.
-        confidence: the last frame's confidence (:attr:`PriorConfig.temporal_min_confidence`).
+        confidence: the last frame's confidence, the tracker's own (before
+            :attr:`LossConfig.doubt_level`'s mapping; :attr:`PriorConfig.temporal_min_confidence`).
         q_trusted: the estimate of the last frame whose confidence reached
             :attr:`PriorConfig.restore_hidden_below` (the initial pose before one did).
         hidden: the q entries the image did not show on the last frame (they move no link the
@@ -68,7 +69,7 @@ class StepReport:
     iterations: int
     status: str
     valid_share: float
-    confidence: float
+    confidence: float   # as reported (LossConfig.doubt_level at 0.5); TrackState.confidence is the tracker's own
     lost: bool
     timings_s: Mapping[str, float]
     diagnostics: FrontEndDiagnostics

@@ -51,7 +51,7 @@ from ._hypotheses import (
     runners_up,
     too_far,
 )
-from ._score import held_filter, judge_frame
+from ._score import held_filter, judge_frame, reported_confidence
 from ._seen import SeenProgram
 from ._state import StepReport, TrackState
 from ._support import (
@@ -351,7 +351,8 @@ class Tracker:
         report = StepReport(frame=frame, time_s=time_s, q_pred=np.asarray(q_pred_host), q_solved=q_meas,
                             q_filtered=filtered, cost=out["cost"] if ok else float("nan"), rms_px=out["rms_px"],
                             iterations=int(out["iterations"]), status=STATUS_NAMES[int(out["status"])],
-                            valid_share=out["valid_share"], confidence=confidence, lost=lost,
+                            valid_share=out["valid_share"], lost=lost,
+                            confidence=reported_confidence(confidence, self.config.loss.doubt_level),
                             timings_s=timings, diagnostics=diag, image_score=image_score, hypothesis=picked.label,
                             starts=picked.starts, reinitialised=state.lost and not lost, seen=seen)
         ghk_next = jax.tree_util.tree_unflatten(self._ghk_tree, ghk_next)
