@@ -3,16 +3,20 @@ all missing is reported unseen (share 0) and the others seen (share 1); the run'
 the frames each joint was seen on and the error of the seen and unseen entries apart."""
 
 import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from helpers import FunctionFrontEnd
 
 from jaxhand import InputError
 from jaxhand.features import features_from_pose
+from jaxhand.kinematics import View
 from jaxhand.render import make_preset
 from jaxhand.track import TrackConfig, Tracker, seen_summary
+from jaxhand.track._seen import unseen_links
 from jaxhand.track._support import moved_links
-from jaxhand.viz import plot_joint_angles
+from jaxhand.viz import draw_view, plot_joint_angles
+from jaxhand.viz._draw import DIM
 
 
 @pytest.fixture(scope="module")
@@ -74,3 +78,18 @@ def test_the_angle_plot_takes_the_shares_and_refuses_another_shape(fingers, tmp_
     assert path.stat().st_size > 0
     with pytest.raises(InputError, match=r"seen: expected \(4, 6\)"):
         plot_joint_angles(m, t, np.asarray(fingers.q), tmp_path / "b.png", seen=seen[:2])
+
+
+def test_the_links_of_unseen_joints_are_found_and_drawn_grey(fingers):
+    m = fingers.model
+    seen = np.ones(m.n_q)
+    seen[[m.q_names.index(n) for n in ("index_mcp", "index_pip", "index_dip")]] = 0.1
+    dim = unseen_links(m, seen)
+    assert [m.link_names[k] for k in np.flatnonzero(dim)] == ["index_mcp", "index_pip", "index_dip"]
+    two = jnp.zeros(2)
+    view = View(joints_px=jnp.zeros((2, 2)), joints_depth=two, link_start_px=jnp.array([[10.0, 10.0], [10.0, 30.0]]),
+                link_end_px=jnp.array([[50.0, 10.0], [50.0, 30.0]]), link_depth=jnp.ones((2, 2)),
+                tips_px=jnp.zeros((0, 2)), tips_depth=jnp.zeros(0), link_radius_px=jnp.array([3.0, 3.0]))
+    image = draw_view(np.zeros((40, 60, 3), np.uint8), view, (0, 0, 255), thickness=3, joints=False,
+                      dim=[False, True])
+    assert tuple(image[10, 30]) == (0, 0, 255) and tuple(image[30, 30]) == DIM

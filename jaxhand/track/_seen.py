@@ -16,7 +16,7 @@ from ..features import Features
 from ..model import Model
 from ._compiled import _Static, seen_at
 
-__all__ = ["SeenProgram", "seen_summary", "scored_joints", "SEEN_LEVEL"]
+__all__ = ["SeenProgram", "seen_summary", "scored_joints", "unseen_links", "SEEN_LEVEL"]
 
 #: A q entry counts as seen on a frame when its share reaches this.
 SEEN_LEVEL = 0.5
@@ -46,6 +46,13 @@ class SeenProgram:
         """(n_q,) each entry's seen share in [0, 1] at ``q`` with ``feats`` (one tuple of
         :data:`~jaxhand.track._compiled.FEATURE_FIELDS` arrays per camera)."""
         return np.asarray(_seen_jit(self._static, self._consts, feats, jnp.asarray(q, self._consts[0].dtype)))
+
+
+def unseen_links(model: Model, seen) -> np.ndarray:
+    """(n_links,) whether each link's own joint went unseen (share under :data:`SEEN_LEVEL`); a
+    link on a frame without a joint of its own counts as seen."""
+    own = np.asarray(model.q_index)[np.asarray(model.link_frame, int)]
+    return (own >= 0) & (np.asarray(seen, float)[np.maximum(own, 0)] < SEEN_LEVEL)
 
 
 def scored_joints(model: Model) -> list[int]:

@@ -36,7 +36,7 @@ from ..viz import VideoWriter, draw_view, plot_joint_angles
 from ._config import TrackConfig, config_to_dict
 from ._frontend import AbstractFrontEnd, ImageFrontEnd, image_front_end
 from ._landmarks import LandmarkRun
-from ._seen import scored_joints, seen_summary
+from ._seen import scored_joints, seen_summary, unseen_links
 from ._state import StepReport
 from ._tracker import Tracker
 
@@ -56,7 +56,8 @@ def _overlay(model: Model, cameras, images, report: StepReport) -> np.ndarray:
                 if len(pts) >= 3:
                     cv2.polylines(bgr, [np.round(pts * 16).astype(np.int32)], True, GREEN, 1, cv2.LINE_AA, 4)
         draw_view(bgr, project_pose(model, cam, report.q_solved), BLUE, joints=False)
-        draw_view(bgr, project_pose(model, cam, report.q_filtered), RED)
+        dim = None if report.seen is None else unseen_links(model, report.seen)   # grey: not seen
+        draw_view(bgr, project_pose(model, cam, report.q_filtered), RED, dim=dim)
         cv2.putText(bgr, f"{report.frame}", (4, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
         if report.lost:
             cv2.putText(bgr, "LOST", (4, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.45, RED, 1, cv2.LINE_AA)

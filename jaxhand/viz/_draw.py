@@ -27,8 +27,12 @@ def _drawable(*points) -> bool:
     return all(bool(np.all(np.isfinite(p)) and np.all(np.abs(p) < _MAX_PX)) for p in points)
 
 
+#: the colour of links drawn as not seen (``draw_view``'s ``dim``)
+DIM = (150, 150, 150)
+
+
 def draw_view(image: np.ndarray, view: View, color=(0, 0, 255), *, outline: bool = False, thickness: int = 1,
-              joints: bool = True) -> np.ndarray:
+              joints: bool = True, dim=None) -> np.ndarray:
     """Draw a projected model onto a BGR uint8 image (in place; also returned).
 
     Args:
@@ -38,22 +42,26 @@ def draw_view(image: np.ndarray, view: View, color=(0, 0, 255), *, outline: bool
         outline: also draw each pill's projected outline (two side lines and end circles).
         thickness: line thickness in pixels.
         joints: mark joint centres (circles) and tips (filled dots).
+        dim: optional (n_links,) flags: those links drawn in grey (:data:`DIM`), e.g. the links
+            whose joint the frame did not see.
     """
     s, e = np.asarray(view.link_start_px), np.asarray(view.link_end_px)
     r = np.asarray(view.link_radius_px)
+    dim = np.zeros(len(s), bool) if dim is None else np.asarray(dim, bool)
     for k in range(len(s)):  # drawing API is per primitive; a few dozen links per frame
         if not _drawable(s[k], e[k], r[k]):
             continue
-        cv2.line(image, _pt(s[k]), _pt(e[k]), color, thickness, cv2.LINE_AA, _SHIFT)
+        colour = DIM if dim[k] else color
+        cv2.line(image, _pt(s[k]), _pt(e[k]), colour, thickness, cv2.LINE_AA, _SHIFT)
         if outline:
             d = e[k] - s[k]
             n = np.array([-d[1], d[0]]) / max(np.linalg.norm(d), 1e-9) * r[k]
             for sign in (1, -1):
-                cv2.line(image, _pt(s[k] + sign * n), _pt(e[k] + sign * n), color, 1, cv2.LINE_AA, _SHIFT)
+                cv2.line(image, _pt(s[k] + sign * n), _pt(e[k] + sign * n), colour, 1, cv2.LINE_AA, _SHIFT)
             for c in (s[k], e[k]):
-                cv2.circle(image, _pt(c), int(round(r[k] * (1 << _SHIFT))), color, 1, cv2.LINE_AA, _SHIFT)
+                cv2.circle(image, _pt(c), int(round(r[k] * (1 << _SHIFT))), colour, 1, cv2.LINE_AA, _SHIFT)
         if joints:
-            cv2.circle(image, _pt(s[k]), 2 << _SHIFT, color, 1, cv2.LINE_AA, _SHIFT)
+            cv2.circle(image, _pt(s[k]), 2 << _SHIFT, colour, 1, cv2.LINE_AA, _SHIFT)
     if joints:
         for t in np.asarray(view.tips_px):
             if not _drawable(t):
