@@ -38,14 +38,16 @@ class SeenProgram:
     """
 
     def __init__(self, model: Model, rig: tuple, fractions):
-        consts, static = eqx.partition((model, rig, jnp.asarray(fractions)), eqx.is_array)
+        fractions = jnp.asarray(fractions)
+        consts, static = eqx.partition((model, rig, fractions), eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(consts)
         self._consts, self._static = tuple(leaves), _Static((treedef, static))
+        self._dtype = np.dtype(fractions.dtype)   # the working precision: q goes in as a host array of it
 
     def __call__(self, feats: tuple, q) -> np.ndarray:
         """(n_q,) each entry's seen share in [0, 1] at ``q`` with ``feats`` (one tuple of
         :data:`~jaxhand.track._compiled.FEATURE_FIELDS` arrays per camera)."""
-        return np.asarray(_seen_jit(self._static, self._consts, feats, jnp.asarray(q, self._consts[0].dtype)))
+        return np.asarray(_seen_jit(self._static, self._consts, feats, np.asarray(q, self._dtype)))
 
 
 def unseen_links(model: Model, seen) -> np.ndarray:

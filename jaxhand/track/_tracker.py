@@ -313,6 +313,7 @@ class Tracker:
             found = self._verify(images, state, ghk, filtered, measured, fe_state, frame, terms)
             if found is not None:
                 (q_meas, filtered, out, ghk_next, fe_state, extracted), measured = found, None
+                feats = self._feature_arrays(extracted.features)
                 picked = dataclasses.replace(picked, label="verify")
             t_verify = time.perf_counter() - t0
         if not out["features_ok"]:
@@ -344,7 +345,7 @@ class Tracker:
         if not lost:
             self.frontend.observe(images, filtered)
         t4 = time.perf_counter()   # which joints the final features saw, at the reported pose
-        seen = self._seen(self._feature_arrays(extracted.features), filtered)
+        seen = self._seen(feats, filtered)
         timings["seen"] = time.perf_counter() - t4
         diag = extracted.diagnostics
         timings.update({f"features.{k}": v for k, v in diag.timings_s.items()})
