@@ -7,8 +7,9 @@ starts per frame
 (:class:`~jaxhand.track.HypothesisConfig`: the prediction alone; + the last solve; + 2 flips; + 6
 flips), and once per count with exact features (``ExactFrontEnd``, 0.5 px noise), where the solve
 is the whole cost. Per run: median ms per stage over the steady frames (the front end
-``features``, the vmapped ``solve``, the front end's ``score``, the host's ``filter``), process
-CPU ms per frame, frames/s, and the mean joint error (deg); the JSON also has the front end's parts
+``features``, the vmapped ``solve``, the front end's ``score``, the host's ``filter``, the
+per-joint ``seen`` share), process CPU ms per frame, frames/s, and the mean joint error (deg);
+the JSON also has the front end's parts
 (``features.*``). Peers in the same process, one run
 after the other. ``--experiments`` instead runs ``benchmarks/tracking.py``'s experiments (its
 ``--quick`` length) with the default settings and each ``--settings`` of ``benchmarks/devset.py``.
@@ -39,7 +40,7 @@ from jaxhand.track import ExactFrontEnd, ImageFrontEnd, TrackConfig, Tracker, ac
 
 #: Starts per frame -> the hypotheses section that gives that many.
 COUNTS = {1: {}, 2: {"last_solve": True}, 4: {"last_solve": True, "flips": 2}, 8: {"last_solve": True, "flips": 6}}
-STAGES = ("features", "solve", "score", "filter")
+STAGES = ("features", "solve", "score", "filter", "seen")
 
 
 def _track(seq, images, frontend, config: TrackConfig) -> dict:
