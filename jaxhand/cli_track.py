@@ -314,6 +314,14 @@ def print_summary(summary: dict, out: Path, file=None) -> None:
         a = summary["accuracy_filtered"]
         print(f"filtered joint error: mean {a['joint_error_deg']['mean']:.2f} deg, max "
               f"{a['joint_error_deg']['max']:.2f} deg; tip error mean {a['tip_error_px']['mean']:.2f} px", file=file)
+    if "seen" in summary:
+        seen = summary["seen"]
+        hidden = ", ".join(seen["mostly_unseen"]) or "none"
+        line = (f"joints not seen: {100 * seen['unseen_entries_share']:.0f}% of joint-frames, the priors alone placed "
+                f"them; unseen on most frames: {hidden}")
+        if seen.get("error_deg_seen") is not None and seen.get("error_deg_unseen") is not None:
+            line += f"; error seen {seen['error_deg_seen']:.2f} deg, unseen {seen['error_deg_unseen']:.2f} deg"
+        print(line, file=file)
     for name in ("angles.csv", "results.npz", "summary.json", "overlay.mp4", "angles.png"):
         if (out / name).exists():
             print(f"  {out / name}", file=file)

@@ -93,3 +93,21 @@ def test_the_links_of_unseen_joints_are_found_and_drawn_grey(fingers):
     image = draw_view(np.zeros((40, 60, 3), np.uint8), view, (0, 0, 255), thickness=3, joints=False,
                       dim=[False, True])
     assert tuple(image[10, 30]) == (0, 0, 255) and tuple(image[30, 30]) == DIM
+
+
+def test_the_cli_summary_names_the_unseen_joints(tmp_path):
+    import io
+
+    from jaxhand.cli_track import print_summary
+
+    summary = {"frames": 4, "model": "two_fingers", "lost_frames": 0,
+               "seen": {"level": 0.5, "share_of_frames": {}, "mostly_unseen": ["index_pip"],
+                        "unseen_entries_share": 0.125, "error_deg_seen": 1.0, "error_deg_unseen": 10.0}}
+    text = io.StringIO()
+    print_summary(summary, tmp_path, file=text)
+    assert ("joints not seen: 12% of joint-frames, the priors alone placed them; unseen on most frames: index_pip; "
+            "error seen 1.00 deg, unseen 10.00 deg") in text.getvalue()
+    summary["seen"].update(mostly_unseen=[], error_deg_unseen=None)
+    text = io.StringIO()
+    print_summary(summary, tmp_path, file=text)
+    assert "unseen on most frames: none\n" in text.getvalue()
