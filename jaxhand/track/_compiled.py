@@ -37,7 +37,8 @@ from ._config import TrackConfig
 from ._flexion import hyperextension_limits, thumb_joints
 from ._score import frame_score
 
-__all__ = ["FrameProgram", "frame_step", "solve_frame", "seen_at", "finish_frame", "step_constants", "robust_solve",
+__all__ = ["FrameProgram", "frame_step", "solve_frame", "seen_at", "finish_frame", "step_constants", "split_constants",
+           "join_constants", "robust_solve",
            "gate", "reweight", "filter_update", "SCALARS", "FEATURE_FIELDS"]
 
 #: The scalars of a :class:`_StepOut`, in the order :func:`_frame_jit` packs them.
@@ -357,6 +358,20 @@ class _Static:
         return isinstance(other, _Static) and (other.value is self.value or other.value == self.value)
 
 
+def split_constants(tree) -> tuple[tuple, _Static]:
+    """A program's constant arguments split once: their array leaves, and a :class:`_Static`
+    handle on the rest (the tree structure and the static half) for ``jax.jit``'s static argument."""
+    consts, static = eqx.partition(tree, eqx.is_array)
+    leaves, treedef = jax.tree_util.tree_flatten(consts)
+    return tuple(leaves), _Static((treedef, static))
+
+
+def join_constants(static: _Static, consts: tuple):
+    """The constant arguments again from :func:`split_constants`' halves (inside the jitted program)."""
+    treedef, static_half = static.value
+    return eqx.combine(jax.tree_util.tree_unflatten(treedef, consts), static_half)
+
+
 @functools.partial(jax.jit, static_argnums=0)
 def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last, q_start, terms: tuple = ()):
     """:func:`frame_step` with flat arguments and results: ``consts`` and ``static`` are the
@@ -364,9 +379,8 @@ def _frame_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, q_last,
     :data:`FEATURE_FIELDS` per camera; ``ghk`` the filter's (x, v, a). Returns
     ``(q_solved, q_filtered, scalars)`` with the :data:`SCALARS` packed in one float vector (all
     exact in float64), and the next filter state (x, v, a)."""
-    treedef, static_half = static.value
-    parts = eqx.combine(jax.tree_util.tree_unflatten(treedef, consts), static_half)
-    model, rig, build, fit_config, numbers, passes, use_filter, hold, priors, report_solve = parts
+    model, rig, build, fit_config, numbers, passes, use_filter, hold, priors, report_solve = join_constants(
+        static, consts)
     out = frame_step(model, rig, tuple(Features(*f) for f in feats), GHKState(*ghk), q_last, q_start, build,
                      fit_config, numbers, passes, use_filter, hold, priors, report_solve, terms)
     dtype = out.q_solved.dtype
@@ -406,9 +420,7 @@ class FrameProgram:
 
     def __init__(self, model: Model, rig: tuple, config: TrackConfig, theta: float, dt_s: float,
                  temporal: bool = True):
-        consts, static = eqx.partition(step_constants(model, rig, config, theta, dt_s, temporal), eqx.is_array)
-        leaves, treedef = jax.tree_util.tree_flatten(consts)
-        self._consts, self._static = tuple(leaves), _Static((treedef, static))
+        self._consts, self._static = split_constants(step_constants(model, rig, config, theta, dt_s, temporal))
 
     def __call__(self, feats: tuple, ghk: tuple, q_last, q_start, terms: tuple = ()):
         """``(q_solved, q_filtered, scalars), (x, v, a)`` of one frame (see :func:`_frame_jit`)."""

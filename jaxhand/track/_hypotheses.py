@@ -40,7 +40,17 @@ from ..filter import GHKState
 from ..kinematics import clip_q, pose
 from ..model import Model
 from ..residuals import ResidualArgs, feature_distances, residuals_and_jacobian
-from ._compiled import SCALARS, _Solved, _Static, features_ok, finish_frame, solve_frame, step_constants
+from ._compiled import (
+    SCALARS,
+    _Solved,
+    _Static,
+    features_ok,
+    finish_frame,
+    join_constants,
+    solve_frame,
+    split_constants,
+    step_constants,
+)
 from ._config import HypothesisConfig, TrackConfig
 
 __all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "image_merit", "choose", "runners_up", "recovery_starts",
@@ -180,15 +190,10 @@ def candidates(model: Model, rig: tuple, feats: tuple, ghk: GHKState, extras, ex
                        starts=starts)
 
 
-def _unpack(static: _Static, consts: tuple):
-    treedef, static_half = static.value
-    return eqx.combine(jax.tree_util.tree_unflatten(treedef, consts), static_half)
-
-
 @functools.partial(jax.jit, static_argnums=0)
 def _candidates_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras, extra_valid, terms: tuple = ()):
     (model, rig, build, fit_config, numbers, passes, _, _, priors, _), (n_flips, flip_rad, n_folds, _) = \
-        _unpack(static, consts)
+        join_constants(static, consts)
     return candidates(model, rig, tuple(Features(*f) for f in feats), GHKState(*ghk), extras, extra_valid, build,
                       fit_config, numbers, passes, priors, n_flips, flip_rad, n_folds, terms)
 
@@ -203,7 +208,7 @@ def _pack(out):
 @functools.partial(jax.jit, static_argnums=0)
 def _commit_jit(static: _Static, consts: tuple, cands: _Candidates, index, ghk: tuple, q_last):
     """The candidate ``index`` through :func:`finish_frame`, packed as :func:`_frame_jit` packs."""
-    (model, _, _, _, numbers, _, use_filter, hold, _, report_solve), _ = _unpack(static, consts)
+    (model, _, _, _, numbers, _, use_filter, hold, _, report_solve), _ = join_constants(static, consts)
     solved = jax.tree_util.tree_map(lambda a: a[index], cands.solved)
     return _pack(finish_frame(model, GHKState(*ghk), q_last, solved, cands.features_ok, numbers, use_filter, hold,
                               report_solve))
@@ -220,7 +225,7 @@ def _chosen_jit(static: _Static, consts: tuple, feats: tuple, ghk: tuple, extras
     that moves a joint more than ``max_step`` (rad) from ``q_last`` cannot win (:func:`too_far`),
     and the prediction's merit counts ``1 + margin`` times (:func:`favour_prediction`)."""
     (model, rig, build, fit_config, numbers, passes, use_filter, hold, priors, report_solve), \
-        (n_flips, flip_rad, n_folds, coarse_steps) = _unpack(static, consts)
+        (n_flips, flip_rad, n_folds, coarse_steps) = join_constants(static, consts)
     feats, ghk = tuple(Features(*f) for f in feats), GHKState(*ghk)
     cands = candidates(model, rig, feats, ghk, extras, extra_valid, build, fit_config, numbers, passes, priors,
                        n_flips, flip_rad, n_folds, terms, coarse_steps)
@@ -246,9 +251,7 @@ class HypothesisProgram:
         hyp = config.hypotheses
         parts = (step_constants(model, rig, config, theta, dt_s, temporal),
                  (hyp.flips, jnp.asarray(float(np.radians(hyp.flip_deg))), hyp.folds, hyp.coarse_steps))
-        consts, static = eqx.partition(parts, eqx.is_array)
-        leaves, treedef = jax.tree_util.tree_flatten(consts)
-        self._consts, self._static = tuple(leaves), _Static((treedef, static))
+        self._consts, self._static = split_constants(parts)
         self.n_flips, self.n_folds = hyp.flips, hyp.folds
 
     def candidates(self, feats: tuple, ghk: tuple, extras, extra_valid, terms: tuple = ()) -> _Candidates:

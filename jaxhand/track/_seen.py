@@ -7,14 +7,13 @@ from __future__ import annotations
 
 import functools
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ..features import Features
 from ..model import Model
-from ._compiled import _Static, seen_at
+from ._compiled import _Static, join_constants, seen_at, split_constants
 
 __all__ = ["SeenProgram", "seen_summary", "scored_joints", "unseen_links", "SEEN_LEVEL"]
 
@@ -24,8 +23,7 @@ SEEN_LEVEL = 0.5
 
 @functools.partial(jax.jit, static_argnums=0)
 def _seen_jit(static: _Static, consts: tuple, feats: tuple, q):
-    treedef, static_half = static.value
-    model, rig, fractions = eqx.combine(jax.tree_util.tree_unflatten(treedef, consts), static_half)
+    model, rig, fractions = join_constants(static, consts)
     return seen_at(model, rig, tuple(Features(*f) for f in feats), q, fractions)
 
 
@@ -39,9 +37,7 @@ class SeenProgram:
 
     def __init__(self, model: Model, rig: tuple, fractions):
         fractions = jnp.asarray(fractions)
-        consts, static = eqx.partition((model, rig, fractions), eqx.is_array)
-        leaves, treedef = jax.tree_util.tree_flatten(consts)
-        self._consts, self._static = tuple(leaves), _Static((treedef, static))
+        self._consts, self._static = split_constants((model, rig, fractions))
         self._dtype = np.dtype(fractions.dtype)   # the working precision: q goes in as a host array of it
 
     def __call__(self, feats: tuple, q) -> np.ndarray:
