@@ -206,18 +206,19 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         lost_flags.append(rep.lost)
     qt = np.asarray(seq.truth.q[:n])
     out = {"frames": n, "lost": lost, "fps": 1.0 / float(np.median(times[1:])) if n > 1 else float("nan")}
+    filt = np.asarray(filt)
+    errors = {}
     for label, q in (("filtered", filt), ("raw", raw)):
-        e = np.degrees(np.abs(np.asarray(q) - qt))[:, moving]
+        e = errors[label] = np.degrees(np.abs(np.asarray(q) - qt))[:, moving]
         out[f"{label}_mean_deg"], out[f"{label}_max_deg"] = float(e.mean()), float(e.max())
         out[f"{label}_tip_mean_px"] = accuracy_summary(m, cams, np.asarray(q), qt)["tip_error_px"]["mean"]
-    err = np.degrees(np.abs(np.asarray(filt) - qt))[:, moving] > 15.0
-    out["longest_run_over_15deg"] = int(max((_longest_run(col) for col in err.T), default=0))
-    out["per_frame_tip_px"] = frame_tip_error_px(m, cams, np.asarray(filt), qt).tolist()
+    out["longest_run_over_15deg"] = int(max((_longest_run(col) for col in (errors["filtered"] > 15.0).T), default=0))
+    out["per_frame_tip_px"] = frame_tip_error_px(m, cams, filt, qt).tolist()
     out["per_frame_confidence"], out["per_frame_lost"] = [float(c) for c in conf], [bool(x) for x in lost_flags]
-    out["per_frame_mean_deg"] = np.degrees(np.abs(np.asarray(filt) - qt))[:, moving].mean(1).tolist()
+    out["per_frame_mean_deg"] = errors["filtered"].mean(1).tolist()
     out["per_frame_start"] = labels
     out["loss_flag"] = loss_flag_quality(out["per_frame_tip_px"], conf, lost_flags)
-    out["seen"] = seen_summary(m, np.asarray(seen), np.asarray(filt), qt)
+    out["seen"] = seen_summary(m, np.asarray(seen), filt, qt)
     return out
 
 
