@@ -289,3 +289,31 @@ def test_a_hidden_joint_is_not_carried_on(damp):
         assert abs(drift) < 12.0
     else:
         assert drift < -20.0      # carried on towards the limit
+
+
+@pytest.mark.parametrize("gain", [0.0, 0.5, 1.0])
+def test_reported_solve_prediction_forgets_a_stop(gain):
+    """A joint flexes at 6 deg per frame for 15 frames, then stands still; the solve is reported
+    (FilterConfig.report_solve). With velocity_gain 1 the prediction is the last two estimates'
+    straight line, exact again two frames after the stop; 0.5 halves its velocity each frame; with
+    theta's gains (0) the velocity it had is forgotten only slowly, so the prediction overshoots."""
+    m = jh.builtin_model("hand21")
+    j = m.q_lookup("middle_pip")
+    dt = 1 / 30
+    steps = -np.radians(6.0) * np.minimum(np.arange(40), 15)   # hand21 flexes to negative angles
+    ghk = jh.filter.ghk_init(jnp.zeros(m.n_q))
+    over = []
+    for k, angle in enumerate(steps):
+        q_meas = jnp.zeros(m.n_q).at[j].set(angle)
+        filtered, ghk = _filter_step(m, ghk, q_meas, jnp.asarray(0.873), jnp.asarray(dt), True, True,
+                                     velocity_gain=jnp.asarray(gain))
+        np.testing.assert_array_equal(np.asarray(filtered), np.asarray(q_meas))   # the solve is reported
+        over.append(np.degrees(steps[min(k + 1, 39)] - float(ghk.x[j])))         # the next frame's prediction past it
+    if gain == 1.0:
+        assert np.abs(over[16:]).max() < 1e-9 and np.abs(over[1:14]).max() < 1e-9
+        assert float(ghk.a[j]) == 0.0
+    elif gain == 0.5:
+        # the velocity at the stop is 1 - 0.5^15 of 6 deg per frame
+        np.testing.assert_allclose(over[16:20], 6.0 * 0.5 ** np.arange(1, 5), rtol=1e-4)
+    else:
+        assert min(over[16:26]) > 1.5   # still carried on 10 frames after the stop

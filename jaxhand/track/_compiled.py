@@ -49,7 +49,7 @@ FEATURE_FIELDS = ("lines", "line_valid", "line_weight", "tips", "tip_valid", "ti
 
 
 def filter_update(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: bool, report_solve: bool = False,
-                  seen=None, keep_unseen=0.0) -> tuple[Float[Array, " nq"], GHKState]:
+                  seen=None, keep_unseen=0.0, velocity_gain=0.0) -> tuple[Float[Array, " nq"], GHKState]:
     """g-h-k update with the measured q, then the prediction for the next frame (both clipped).
     With ``report_solve`` the estimate is the measurement itself; the filter's velocity and
     acceleration still carry the prediction from it. With ``seen`` (per entry, in [0, 1]) the
@@ -61,7 +61,9 @@ def filter_update(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: 
     if use_filter:
         updated = ghk_update(ghk, q_meas, theta, dt_s)
         if report_solve:
-            updated = GHKState(x=q_meas, v=updated.v, a=updated.a)
+            own = ghk.v + velocity_gain * (q_meas - ghk.x) / dt_s
+            updated = GHKState(x=q_meas, v=jnp.where(velocity_gain > 0, own, updated.v),
+                               a=jnp.where(velocity_gain > 0, 0.0, updated.a))
         if seen is not None:   # angles only: a base translation or quaternion is not a joint a finger hides
             updated = damp_unseen(updated, jnp.where(model.is_angle, seen, 1.0), keep_unseen)
     else:
@@ -96,6 +98,7 @@ class _StepNumbers(eqx.Module):
     min_term_merit: Float[Array, ""]
     valid_share_good: Float[Array, ""]
     keep_unseen: Float[Array, ""]    # exp(-dt_s / FilterConfig.unseen_decay_s)
+    velocity_gain: Float[Array, ""]
     damp_unseen: bool = eqx.field(static=True, default=False)
 
 
@@ -118,7 +121,7 @@ class _Priors(eqx.Module):
         dtype = model.q_lower.dtype
         fixed = []
         if config.dip_pip_weight:
-            fixed.append(dip_pip_coupling(model, weight=config.dip_pip_weight))
+            fixed.append(dip_pip_coupling(model, weight=config.dip_pip_weight, ratio=config.dip_pip_ratio))
         if config.soft_limit_weight:
             fixed.append(soft_limits(model, weight=config.soft_limit_weight,
                                      margin=float(np.radians(config.soft_limit_margin_deg))))
@@ -316,7 +319,7 @@ def finish_frame(model: Model, ghk: GHKState, q_last, solved: _Solved, checks_ok
     conf = conf * solved.term_merit
     lost = lost | (solved.term_merit < numbers.min_term_merit)
     filtered, ghk_next = filter_update(model, ghk, solved.q, numbers.theta, numbers.dt_s, use_filter,
-                                       report_solve, solved.seen, numbers.keep_unseen)
+                                       report_solve, solved.seen, numbers.keep_unseen, numbers.velocity_gain)
     if hold:
         # A lost frame's solve fits stray features: hold the last good estimate still (zero
         # velocity and acceleration) instead of letting the filter extrapolate it.
@@ -400,7 +403,7 @@ def step_constants(model: Model, rig: tuple, config: TrackConfig, theta: float, 
     numbers = _StepNumbers(*(jnp.asarray(float(v)) for v in (
         theta, dt_s, config.robust.scale_px, config.robust.gate_scale_px, config.loss.rms_scale_px,
         config.loss.min_valid_share, config.loss.max_rms_px, config.loss.min_term_merit, config.loss.valid_share_good,
-        keep_unseen)),
+        keep_unseen, fc.velocity_gain)),
         damp_unseen=fc.enabled and fc.damp_unseen)
     priors = _Priors.of(model, config.prior)
     priors = priors if temporal else priors.without_temporal()

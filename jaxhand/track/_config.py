@@ -19,6 +19,7 @@ import numpy as np
 
 from .._errors import InputError
 from ..image import ImageConfig
+from ..priors import DIP_PIP_RATIO
 from ..solve import FitConfig, solver_named
 from ..solve.internal import check_config
 from ._config_checks import count, finite_number, flag, need
@@ -51,6 +52,11 @@ class FilterConfig:
             visible links now and then lags with it (benchmarks/README.md, 2026-12-02).
         unseen_decay_s: traced, s. The time constant of an unseen joint's velocity decay
             (:func:`jaxhand.filter.damp_unseen`): a brief occlusion carries on, a long one holds.
+        velocity_gain: traced, in [0, 2). With ``report_solve``, the share of each frame's
+            observed velocity (the reported estimate's change against the prediction) taken into
+            the filter's velocity, the acceleration dropped: a constant-velocity prediction from
+            the reported estimates. 0: theta's h and k (the thesis's gains, made for a filter that
+            keeps its own position: with the solve reported they forget a stop only over some 20 frames).
     """
 
     enabled: bool = True
@@ -59,6 +65,7 @@ class FilterConfig:
     report_solve: bool = False
     damp_unseen: bool = False
     unseen_decay_s: float = 0.2
+    velocity_gain: float = 0.0
 
     def __post_init__(self):
         if self.theta_rate_hz is None:
@@ -73,6 +80,10 @@ class FilterConfig:
         need(finite_number(value) and value >= 0, "filter.unseen_decay_s",
               f"expected a finite number >= 0 (0: an unseen joint stops at once), got {value!r}")
         object.__setattr__(self, "unseen_decay_s", float(value))
+        value = self.velocity_gain
+        need(finite_number(value) and 0 <= value < 2, "filter.velocity_gain",
+             f"expected a number in [0, 2) (0: theta's gains; 2 and above diverge), got {value!r}")
+        object.__setattr__(self, "velocity_gain", float(value))
 
     def theta_per_frame(self, dt_s: float) -> float:
         """The discount for one frame of ``dt_s`` seconds."""
@@ -206,7 +217,9 @@ class PriorConfig:
             direction it hardly sees, along which small feature biases carry the thumb far off
             while the temporal prior only slows them (0: none). Not for the planar fingers: it
             would hold a finger that curls towards the camera straight.
-        dip_pip_weight: traced, 1/rad. DIP-PIP coupling, ``w (q_dip - 2/3 q_pip)`` per finger (0: none).
+        dip_pip_weight: traced, 1/rad. DIP-PIP coupling, ``w (q_dip - r q_pip)`` per finger (0: none).
+        dip_pip_ratio: traced, unitless. That coupling's ``r``, the DIP's flexion over the PIP's
+            (the common anatomical approximation 2/3 by default).
         soft_limit_weight: traced, 1/rad. Soft joint limits beyond ``soft_limit_margin_deg`` (0: none).
         soft_limit_margin_deg: traced, deg. Where each soft limit starts, past its hard limit (the
             ``bounded`` solver never goes there); negative: that far inside, as a pose at its limits is unlikely.
@@ -227,6 +240,7 @@ class PriorConfig:
     hold_unseen_frames: float | None = 0.0
     thumb_rest_sigma_deg: float | None = 0.0
     dip_pip_weight: float | None = 0.0
+    dip_pip_ratio: float = DIP_PIP_RATIO
     soft_limit_weight: float | None = 0.0
     soft_limit_margin_deg: float | None = 0.0
     hyperextension_weight: float | None = 0.0
