@@ -317,3 +317,24 @@ def test_reported_solve_prediction_forgets_a_stop(gain):
         np.testing.assert_allclose(over[16:20], 6.0 * 0.5 ** np.arange(1, 5), rtol=1e-4)
     else:
         assert min(over[16:26]) > 1.5   # still carried on 10 frames after the stop
+
+
+@pytest.mark.parametrize("ratio", [0.5, 2.0 / 3.0])
+def test_a_hidden_dip_follows_the_coupling_ratio(ratio):
+    """The middle DIP's phalanx and tip are hidden: with the DIP-PIP coupling
+    (PriorConfig.dip_pip_weight) nothing else places it, so the solve sets it to dip_pip_ratio
+    times its PIP."""
+    seq = make_preset("two_finger_occlusion", frames=5, size=(160, 120))
+    m = seq.model
+    pip, dip, link = m.q_lookup("middle_pip"), m.q_lookup("middle_dip"), m.link_lookup("middle_dip")
+    q = np.array(seq.q[0])
+    q[pip], q[dip] = np.radians(-60.0), 0.0
+    f = features_from_pose(m, seq.cameras, q)[0]
+    f = eqx.tree_at(lambda g: (g.line_valid, g.tip_valid), f,
+                    (f.line_valid.at[link].set(False), f.tip_valid.at[m.tip_links.index(link)].set(False)))
+    config = TrackConfig(prior=jh.track.PriorConfig(dip_pip_weight=4.0, dip_pip_ratio=ratio))
+    tracker = Tracker(m, seq.cameras, FunctionFrontEnd(lambda images, q_start, state, frame: (f,)), config,
+                      dt_s=1 / 25)
+    _, rep = tracker.step(tracker.init(q), [None], 0)
+    assert abs(np.degrees(rep.q_solved[pip]) + 60.0) < 0.5
+    assert abs(np.degrees(rep.q_solved[dip] - ratio * rep.q_solved[pip])) < 0.1

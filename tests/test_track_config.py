@@ -161,6 +161,7 @@ def test_presets_apply_named_changes_and_unknown_names_are_listed():
                                       "thumb_rest_sigma_deg": 0.0},
                             "hypotheses": {"prediction_margin": 0.0, "verify_below": 0.0},
                             "support": {"whole_lost": 0.0, "whole_good": 0.0}, "loss": {"doubt_level": 0.5},
+                            "filter": {"velocity_gain": 0.0},
                             "image": {"search": {"zero_mean": False},
                                       "score": {"silhouette": {"side_edge_px": 0.0}}}}) == limits
     assert (temporal.hypotheses.prediction_margin, temporal.hypotheses.verify_below) == (0.05, 0.5)
@@ -171,6 +172,8 @@ def test_presets_apply_named_changes_and_unknown_names_are_listed():
     assert (temporal.support.whole_lost, temporal.support.whole_good) == (0.5, 0.8)
     assert temporal.image.search.zero_mean and not limits.image.search.zero_mean
     assert (temporal.loss.doubt_level, limits.loss.doubt_level) == (0.8, 0.5)
+    assert (temporal.filter.velocity_gain, limits.filter.velocity_gain) == (1.0, 0.0)
+    assert temporal.filter.report_solve
     with pytest.raises(jh.InputError,
                        match="preset: unknown preset 'fast'; valid: thesis, robust, robust-limits, coupled, "
                              "robust-temporal"):

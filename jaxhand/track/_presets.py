@@ -43,7 +43,10 @@ __all__ = ["PRESETS"]
 #: features of its fold (benchmarks/README.md, 2026-12-05, sixth session).
 #: Its confidence is reported with 0.8 of its own at 0.5 (``loss.doubt_level``): on the dev set
 #: the frames far off lie between its 0.5 and 0.8, the right ones mostly above (benchmarks/README.md,
-#: 2026-12-06, second session).
+#: 2026-12-06, second session). It predicts each frame on the straight line through the last two
+#: estimates (``filter.velocity_gain`` 1): theta's gains, made for a filter that keeps its own
+#: position, forgot a stop only over some 20 frames and carried a finger hidden in a fist on to
+#: its limit (benchmarks/README.md, 2026-12-06, third session).
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -72,5 +75,6 @@ PRESETS["robust-temporal"] = {**PRESETS["robust-limits"],
                                              "verify_below": 0.5},
                               "support": {**PRESETS["robust-limits"]["support"], "whole_lost": 0.5, "whole_good": 0.8},
                               "loss": {**PRESETS["robust-limits"]["loss"], "doubt_level": 0.8},
+                              "filter": {**PRESETS["robust-limits"]["filter"], "velocity_gain": 1.0},
                               "image": {**PRESETS["robust-limits"]["image"], "search": {"zero_mean": True},
                                         "score": {"silhouette": {"side_edge_px": 4.0}}}}
