@@ -92,6 +92,7 @@ def test_missing_keys_keep_their_defaults_and_merged_applies_changes():
     ({"format_version": 2}, r"format_version: this jaxhand reads version 1, got 2"),
     ({"filter": {"theta": 1.5}}, r"filter\.theta: theta must lie in \[0, 1\]"),
     ({"filter": {"velocity_gain": 2.0}}, r"filter\.velocity_gain: expected a number in \[0, 2\)"),
+    ({"filter": {"velocity_gain": 1.0}}, r"filter\.velocity_gain: acts on a filter that reports the solve"),
     ({"fit": {"jacobian": "numeric"}}, r"fit\.jacobian: expected one of autodiff, geometric"),
     ({"solver": "gn2"}, r"unknown solver 'gn2'"),
     ({"robust": {"passes": -1}}, r"robust\.passes: expected an integer >= 0"),

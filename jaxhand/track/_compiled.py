@@ -54,7 +54,9 @@ def filter_update(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: 
     With ``report_solve`` the estimate is the measurement itself; the filter's velocity and
     acceleration still carry the prediction from it. With ``seen`` (per entry, in [0, 1]) the
     velocity and acceleration of the joint angles the frame does not see decay before the
-    prediction, each keeping ``seen + (1 - seen) keep_unseen`` (:func:`jaxhand.filter.damp_unseen`)."""
+    prediction, each keeping ``seen + (1 - seen) keep_unseen`` (:func:`jaxhand.filter.damp_unseen`).
+    With ``report_solve`` and ``velocity_gain`` > 0 (traced) the velocity takes that share of the
+    innovation over the frame and the acceleration is dropped (:class:`FilterConfig`)."""
     if model.base_kind == "free":  # keep the measured quaternion in the prediction's hemisphere
         flip = jnp.sign(jnp.dot(q_meas[:4], ghk.x[:4]))
         q_meas = q_meas.at[:4].multiply(jnp.where(flip == 0, 1.0, flip))

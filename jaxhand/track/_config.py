@@ -84,6 +84,8 @@ class FilterConfig:
         need(finite_number(value) and 0 <= value < 2, "filter.velocity_gain",
              f"expected a number in [0, 2) (0: theta's gains; 2 and above diverge), got {value!r}")
         object.__setattr__(self, "velocity_gain", float(value))
+        need(not value or self.report_solve, "filter.velocity_gain",
+             "acts on a filter that reports the solve: set filter.report_solve = true (or velocity_gain 0)")
 
     def theta_per_frame(self, dt_s: float) -> float:
         """The discount for one frame of ``dt_s`` seconds."""
