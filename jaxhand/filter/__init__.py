@@ -1,6 +1,7 @@
 """Temporal filters (thesis ch. 5, app. E) as pure predict/update functions."""
 
 from ._ghk import GHKState as GHKState
+from ._ghk import ghk_follow as ghk_follow
 from ._ghk import ghk_gains as ghk_gains
 from ._ghk import ghk_init as ghk_init
 from ._ghk import ghk_predict as ghk_predict
@@ -21,7 +22,8 @@ from ._prior import prior_update_map as prior_update_map
 from ._prior import solve_information as solve_information
 from ._width import width_update as width_update
 
-__all__ = ["GHKState", "ghk_gains", "ghk_init", "ghk_predict", "ghk_update", "KalmanState", "kalman_predict",
+__all__ = ["GHKState", "ghk_gains", "ghk_init", "ghk_predict", "ghk_update", "ghk_follow", "KalmanState",
+           "kalman_predict",
            "kalman_update", "width_update", "PriorState", "prior_init", "prior_predict", "prior_update",
            "prior_update_map", "prior_residuals", "prior_information", "solve_information", "marginal_information",
            "seen_share", "damp_unseen"]

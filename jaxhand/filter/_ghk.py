@@ -14,6 +14,12 @@ Update with the measurement y (the pose estimate q_k, §5.2) and e = y - x* (eqs
     x = x* + g e,   v = v* + (h / T) e,   a = a* + (2 k / T^2) e.
 
 theta -> 1 trusts history (heavy smoothing), theta = 0 takes the measurement as it is.
+
+A tracker that reports the measurement itself (x = y) keeps no position error to correct the
+velocity over later frames, so theta's h then forgets a change of motion only slowly;
+:func:`ghk_follow` updates such a filter with its own velocity gain and no acceleration:
+
+    x = y,   v = v* + (h_v / T) e,   a = 0.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-__all__ = ["GHKState", "ghk_gains", "ghk_init", "ghk_predict", "ghk_update"]
+__all__ = ["GHKState", "ghk_gains", "ghk_init", "ghk_predict", "ghk_update", "ghk_follow"]
 
 
 class GHKState(eqx.Module):
@@ -56,3 +62,10 @@ def ghk_update(predicted: GHKState, y, theta, dt_s, valid: Bool[ArrayLike, " n"]
     g, h, k = ghk_gains(theta)
     e = jnp.where(valid, jnp.asarray(y) - predicted.x, 0.0)
     return GHKState(x=predicted.x + g * e, v=predicted.v + (h / dt_s) * e, a=predicted.a + (2.0 * k / dt_s**2) * e)
+
+
+def ghk_follow(predicted: GHKState, y, velocity_gain, dt_s) -> GHKState:
+    """The state at the measurement y itself, its velocity corrected by ``velocity_gain`` of the
+    innovation over the frame and no acceleration (1: the last two measurements' straight line)."""
+    y = jnp.asarray(y)
+    return GHKState(x=y, v=predicted.v + velocity_gain * (y - predicted.x) / dt_s, a=jnp.zeros_like(predicted.a))

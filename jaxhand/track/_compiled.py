@@ -27,7 +27,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from ..features import Features, feature_value_checks, line_through
-from ..filter import GHKState, damp_unseen, ghk_predict, ghk_update, seen_share
+from ..filter import GHKState, damp_unseen, ghk_follow, ghk_predict, ghk_update, seen_share
 from ..kinematics import clip_q, pose
 from ..model import Model
 from ..priors import TemporalPrior, dip_pip_coupling, information_weight, soft_limits, stack_priors, temporal_weight
@@ -62,10 +62,10 @@ def filter_update(model: Model, ghk: GHKState, q_meas, theta, dt_s, use_filter: 
         q_meas = q_meas.at[:4].multiply(jnp.where(flip == 0, 1.0, flip))
     if use_filter:
         updated = ghk_update(ghk, q_meas, theta, dt_s)
-        if report_solve:
-            own = ghk.v + velocity_gain * (q_meas - ghk.x) / dt_s
-            updated = GHKState(x=q_meas, v=jnp.where(velocity_gain > 0, own, updated.v),
-                               a=jnp.where(velocity_gain > 0, 0.0, updated.a))
+        if report_solve:   # the solve itself, its velocity by theta's gains or its own (velocity_gain > 0)
+            own = ghk_follow(ghk, q_meas, velocity_gain, dt_s)
+            updated = jax.tree_util.tree_map(lambda o, u: jnp.where(velocity_gain > 0, o, u), own,
+                                             GHKState(x=q_meas, v=updated.v, a=updated.a))
         if seen is not None:   # angles only: a base translation or quaternion is not a joint a finger hides
             updated = damp_unseen(updated, jnp.where(model.is_angle, seen, 1.0), keep_unseen)
     else:
