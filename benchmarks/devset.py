@@ -44,6 +44,7 @@ from jaxhand.kinematics import project_pose  # noqa: E402
 from jaxhand.track import (  # noqa: E402
     PRESETS,
     ExactFrontEnd,
+    Review,
     TrackConfig,
     Tracker,
     accuracy_summary,
@@ -181,16 +182,14 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         frontend = image_front_end(m, cams, config.image, images, n)
     tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
     state = tracker.init(seq.truth.q[0] if q0 is None else q0)
-    filt, raw, lost, times, conf, lost_flags, labels, seen = [], [], 0, [], [], [], [], []
+    filt, raw, times, conf, lost_flags, labels, seen = [], [], [], [], [], [], []
     moving = moving_joints(seq)
     blank = [np.zeros(c.size[::-1], np.uint8) for c in cams] if exact else None
     it = zip(*images) if images is not None else iter(lambda: None, 0)
-    for k in range(n):
-        frame = next(it)
-        ims = blank if exact else [f.image for f in frame]
-        t0 = time.perf_counter()
-        state, rep = tracker.step(state, ims, k)
-        times.append(time.perf_counter() - t0)
+    review = Review(tracker)
+
+    def record(ims, rep) -> None:
+        k = rep.frame
         if per_frame or overlays is not None:
             tip = float(frame_tip_error_px(m, cams, np.asarray(rep.q_filtered)[None], seq.truth.q[k][None])[0])
             if per_frame:
@@ -201,9 +200,20 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         seen.append(rep.seen)
         filt.append(rep.q_filtered)
         raw.append(rep.q_solved)
-        lost += bool(rep.lost)
-        conf.append(rep.confidence)
         lost_flags.append(rep.lost)
+        conf.append(rep.confidence)
+
+    for k in range(n):
+        frame = next(it)
+        ims = blank if exact else [f.image for f in frame]
+        t0 = time.perf_counter()
+        state, rep = tracker.step(state, ims, k)
+        times.append(time.perf_counter() - t0)
+        for held in review.push(state, ims, rep):
+            record(*held)
+    for held in review.flush():
+        record(*held)
+    lost = int(sum(lost_flags))
     qt = np.asarray(seq.truth.q[:n])
     out = {"frames": n, "lost": lost, "fps": 1.0 / float(np.median(times[1:])) if n > 1 else float("nan")}
     filt = np.asarray(filt)
@@ -219,6 +229,7 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
     out["per_frame_confidence"], out["per_frame_lost"] = [float(c) for c in conf], [bool(x) for x in lost_flags]
     out["per_frame_mean_deg"] = errors["filtered"].mean(1).tolist()
     out["per_frame_start"] = labels
+    out["review"] = review.summary()
     out["loss_flag"] = loss_flag_quality(out["per_frame_tip_px"], conf, lost_flags)
     out["seen"] = seen_summary(m, np.asarray(seen), filt, qt)
     return out

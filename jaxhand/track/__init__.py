@@ -6,7 +6,8 @@
   (:func:`save_track_config`, :func:`load_track_config`);
 - :class:`AbstractFrontEnd` and its final implementations :class:`ImageFrontEnd` (the image
   analysis) and :class:`ExactFrontEnd` (exact features of a known truth, for experiments);
-- :class:`Tracker` (``init``, ``step``), :class:`TrackState`, :class:`StepReport`;
+- :class:`Tracker` (``init``, ``step``), :class:`TrackState`, :class:`StepReport`; :class:`Review`,
+  which tracks the frames before a jump again backward and keeps what explains them better;
 - :func:`track_sequence` (frames from disk to ``angles.csv``, ``summary.json``, overlay video)
   and :func:`accuracy_summary`; :func:`seen_summary`, which joints the frames saw
   (:attr:`StepReport.seen`) and how far off the unseen ones were; :func:`frame_score`, the loss
@@ -37,6 +38,7 @@ from ._frontend import (
     image_front_end,
 )
 from ._presets import PRESETS
+from ._review import Review
 from ._score import confidence_of, frame_score, judge_frame, reported_confidence
 from ._seen import seen_summary
 from ._sequence import accuracy_summary, frame_tip_error_px, loss_flag_quality, track_sequence
@@ -49,7 +51,7 @@ __all__ = [
     "SupportConfig", "ImageSupport", "TRACK_CONFIG_VERSION", "PRESETS",
     "config_to_dict", "config_from_dict", "config_to_toml", "save_track_config", "load_track_config",
     "AbstractFrontEnd", "FrontEndResult", "FrontEndDiagnostics", "ImageFrontEnd", "ExactFrontEnd", "image_front_end",
-    "Tracker", "TrackState", "StepReport", "track_sequence", "accuracy_summary", "frame_tip_error_px",
+    "Tracker", "TrackState", "StepReport", "Review", "track_sequence", "accuracy_summary", "frame_tip_error_px",
     "loss_flag_quality", "seen_summary",
     "frame_score", "confidence_of", "judge_frame", "reported_confidence", "reweight",
 ]

@@ -73,6 +73,18 @@ class HypothesisConfig:
             around the prediction, so a finger folded the wrong way keeps the features of that fold.
         verify_margin: host, in [0, 1]. How much more support the weakest finger must get (and
             the most any other finger may lose) for a verified start to replace the estimate.
+        review_jump_deg: host, deg. After a frame won by a start other than the prediction whose
+            estimate moved some joint angle more than this from the prediction (a jump to another
+            branch), the frames before it are tracked again backward from it, and those the
+            backward track explains as well replace the forward ones (:mod:`jaxhand.track._review`;
+            0: off). Results then leave the tracker ``review_frames`` frames late.
+        review_trust: host, in [0, 1]. The confidence a jump's frame needs to be reviewed: a jump
+            in doubt is more often the mistake than the frames before it.
+        review_frames: host. How many frames a review may go back (and the results' delay).
+        review_agree_deg: host, deg. The backward track meets the forward one where no joint
+            angle differs by more than this; a review that does not meet them changes nothing.
+        review_margin: host, in [0, 1]. A backward estimate replaces the forward one where its
+            confidence is at least the forward one's less this.
     """
 
     flips: int = 0
@@ -97,21 +109,29 @@ class HypothesisConfig:
     finger_deg: tuple[float, ...] = (20.0, 40.0, -20.0)
     verify_below: float = 0.0
     verify_margin: float = 0.05
+    review_jump_deg: float = 0.0
+    review_trust: float = 0.8
+    review_frames: int = 30
+    review_agree_deg: float = 5.0
+    review_margin: float = 0.0
 
     def __post_init__(self):
-        for name in ("flips", "folds", "carry", "recover", "seed", "coarse_steps"):
+        for name in ("flips", "folds", "carry", "recover", "seed", "coarse_steps", "review_frames"):
             count(getattr(self, name), f"hypotheses.{name}")
         for name in ("last_solve", "rest", "rest_fingers"):
             flag(getattr(self, name), f"hypotheses.{name}")
         for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm", "max_step_deg",
-                     "prediction_margin"):
+                     "prediction_margin", "review_jump_deg", "review_agree_deg"):
             value = getattr(self, name)
             need(finite_number(value) and value >= 0, f"hypotheses.{name}",
                  f"expected a finite number >= 0, got {value!r}")
-        for name in ("carry_margin", "finger_level", "rest_below", "step_trust", "verify_below", "verify_margin"):
+        for name in ("carry_margin", "finger_level", "rest_below", "step_trust", "verify_below", "verify_margin",
+                     "review_margin", "review_trust"):
             value = getattr(self, name)
             need(finite_number(value) and 0.0 <= value <= 1.0,
                  f"hypotheses.{name}", f"must lie in [0, 1], got {value!r}")
+        need(not self.review_jump_deg or self.review_frames > 0, "hypotheses.review_frames",
+             "a review (review_jump_deg > 0) needs at least one frame to go back: set review_frames >= 1")
         need(isinstance(self.finger_deg, tuple) and len(self.finger_deg) > 0
              and all(finite_number(d) for d in self.finger_deg),
              "hypotheses.finger_deg", f"expected a non-empty list of finite numbers, got {self.finger_deg!r}")

@@ -89,6 +89,14 @@ class LandmarkRun:
         self.restart_frames.append(int(frame))
         return state, dataclasses.replace(rep, timings_s=timings), True
 
+    def review_step(self, tracker: Tracker):
+        """The step of a :class:`~jaxhand.track.Review`: a held frame tracked again with its
+        landmark term and pose among its starts, without restarts, the front end learning nothing."""
+        def step(state: TrackState, images, report: StepReport) -> tuple[TrackState, StepReport]:
+            return tracker.step(state, images, report.frame, report.time_s, self._proposals(report.frame, None),
+                                self._extra(report.frame), learn=False)
+        return step
+
     def _off(self, frame: int, q) -> bool:
         """Whether ``q`` sits more than ``restart_px`` (median) off frame ``frame``'s landmarks."""
         if not self.config.restart_px:

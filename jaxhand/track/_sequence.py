@@ -36,6 +36,7 @@ from ..viz import VideoWriter, draw_view, plot_joint_angles
 from ._config import TrackConfig, config_to_dict
 from ._frontend import AbstractFrontEnd, ImageFrontEnd, image_front_end
 from ._landmarks import LandmarkRun
+from ._review import Review
 from ._seen import scored_joints, seen_summary, unseen_links
 from ._state import StepReport
 from ._tracker import Tracker
@@ -351,6 +352,27 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
     bar = tqdm(total=n, initial=min(start, n), desc="tracking", unit="frame",
                disable=not (sys.stderr.isatty() if progress is None else progress))
     video_name = "overlay.mp4" if resumed is None else f"overlay_from_{start:04d}.mp4"
+    review = Review(tracker, None if lm is None else lm.review_step(tracker))
+    restarts: set[int] = set()
+    emitted = 0
+
+    def emit(images, rep: StepReport) -> None:   # a frame final: to the files and the video
+        nonlocal vw, emitted
+        emitted += 1
+        marks = {} if lm is None else {"restarted": rep.frame in restarts}
+        writer.write(rep.frame, rep.time_s, rep.q_filtered, rep.confidence, rep.lost, q_pred=rep.q_pred,
+                     q_solved=rep.q_solved, cost=rep.cost, rms_px=rep.rms_px, iterations=rep.iterations,
+                     **marks, **({} if rep.seen is None else {"seen": rep.seen}))
+        if video:
+            tile = _overlay(model, cameras, images, rep)
+            if lm is not None:
+                lm.draw(tile, rep.frame)
+            if vw is None:
+                vw = VideoWriter(out / video_name, fps, tile.shape[1::-1])
+            vw.write(tile)
+            if emitted == 1 or rep.frame % max(1, n // 4) == 0:
+                cv2.imwrite(str(out / f"overlay_{rep.frame:04d}.png"), tile)
+
     try:
         for frames in zip(*sources):
             frame = frames[0].index
@@ -360,6 +382,8 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
                 continue
             bad = [f.error for f in frames if f.image is None]
             if bad:
+                for held in review.flush():   # a review does not reach across a gap
+                    emit(*held)
                 writer.skip(frame, "; ".join(bad))
                 print(f"jaxhand track: skipping frame {frame}: {'; '.join(bad)}", file=sys.stderr)
                 bar.update(1)
@@ -368,25 +392,15 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
             extra_starts = None if proposals is None else proposals(frame)
             if lm is None:
                 state, rep = tracker.step(state, images, frame, frames[0].time_s, extra_starts)
-                marks = {}
             else:
                 state, rep, restarted = lm.step(tracker, state, images, frame, frames[0].time_s, extra_starts)
-                marks = {"restarted": restarted}
+                if restarted:
+                    restarts.add(rep.frame)
             count += 1
             timings.add(rep.timings_s)
             timings.tally(rep)
-            writer.write(rep.frame, rep.time_s, rep.q_filtered, rep.confidence, rep.lost, q_pred=rep.q_pred,
-                         q_solved=rep.q_solved, cost=rep.cost, rms_px=rep.rms_px, iterations=rep.iterations,
-                         **marks, **({} if rep.seen is None else {"seen": rep.seen}))
-            if video:
-                tile = _overlay(model, cameras, images, rep)
-                if lm is not None:
-                    lm.draw(tile, rep.frame)
-                if vw is None:
-                    vw = VideoWriter(out / video_name, fps, tile.shape[1::-1])
-                vw.write(tile)
-                if count == 1 or rep.frame % max(1, n // 4) == 0:
-                    cv2.imwrite(str(out / f"overlay_{rep.frame:04d}.png"), tile)
+            for held in review.push(state, images, rep):
+                emit(*held)
             bar.update(1)
         else:
             frame = n
@@ -397,12 +411,17 @@ def _run(model, cameras, sources, tracker, state, writer, out, n, fps, config, t
             raise
         stop = err   # the folder cannot be written (a full disk): finish what can be finished
     finally:
+        with contextlib.suppress(InputError):   # the frames still held by the review are final too
+            for held in review.flush():
+                emit(*held)
         bar.close()
         if vw is not None:
             vw.close()
     elapsed = time.perf_counter() - started
     summary = _summary(model, cameras, tracker, state, writer, out, fps, config, truth, q0, timings, count,
                        elapsed, resumed)
+    if review.frames:
+        summary["review"] = review.summary()
     if lm is not None:
         cols = writer.arrays()
         summary["landmarks"] = lm.summary(cols["frame"], cols["q"]) if len(writer) else lm.summary([], [])

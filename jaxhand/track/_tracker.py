@@ -256,7 +256,7 @@ class Tracker:
         return confidence, fingers, np.flatnonzero(~(self._moves & judged_link).any(1) & self._moves.any(1))
 
     def step(self, state: TrackState, images: Sequence[np.ndarray | None], frame: int = 0, time_s: float = 0.0,
-             proposals=None, terms: tuple = ()) -> tuple[TrackState, StepReport]:
+             proposals=None, terms: tuple = (), learn: bool = True) -> tuple[TrackState, StepReport]:
         """Process one frame (one image per camera; ``frame`` is passed to the front end).
 
         After the front end, the compiled frame program runs and its results come back in one
@@ -269,7 +269,9 @@ class Tracker:
         for this frame, e.g. a landmark fit), the first round solves every start in one call and
         keeps the best (:mod:`jaxhand.track._hypotheses`; the front end's ``score`` timed as
         ``score``); later rounds refine the winner. ``terms``: this frame's extra solve terms
-        (e.g. :class:`~jaxhand.landmarks.LandmarkTerm`), outside the frame's score.
+        (e.g. :class:`~jaxhand.landmarks.LandmarkTerm`), outside the frame's score. ``learn``
+        False: the front end does not learn from the frame (:meth:`AbstractFrontEnd.observe`),
+        as when a frame is tracked again (:mod:`jaxhand.track._review`).
         """
         if len(images) != len(self.cameras):
             raise InputError(f"expected one image per camera ({len(self.cameras)}), got {len(images)}")
@@ -342,7 +344,7 @@ class Tracker:
         if not lost and self.config.refresh_templates:
             fe_state = self.frontend.refresh(images, q_meas, fe_state)
             timings["templates"] = time.perf_counter() - t3
-        if not lost:
+        if not lost and learn:
             self.frontend.observe(images, filtered)
         t4 = time.perf_counter()   # which joints the final features saw, at the reported pose
         seen = self._seen(feats, filtered)
