@@ -118,5 +118,5 @@ class Review:
 
     def summary(self) -> dict:
         """What ``summary.json`` reports under ``"review"``."""
-        return {"jump_deg": float(np.degrees(self.jump_rad)), "frames": self.frames, "reviews": self.reviews,
-                "met": self.met, "frames_revised": self.revised, "s": round(self.seconds, 3)}
+        return {"jump_deg": self.tracker.config.hypotheses.review_jump_deg, "frames": self.frames,
+                "reviews": self.reviews, "met": self.met, "frames_revised": self.revised, "s": round(self.seconds, 3)}
