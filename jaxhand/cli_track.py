@@ -307,6 +307,10 @@ def print_summary(summary: dict, out: Path, file=None) -> None:
         print(f"landmarks: {lm['restarts']} restart(s); on the fingers (all 21 points within {on['radius_px']:g} px) "
               f"in {on.get('frames_on_fingers', 0)} of {on['frames_compared']} frames, median "
               f"{on.get('median_px', float('nan')):.1f} px", file=file)
+    if "review" in summary:
+        r = summary["review"]
+        print(f"review: {r['reviews']} jump(s) of over {r['jump_deg']:g} deg tracked back ({r['s']:.1f} s), "
+              f"{r['met']} met the forward track, {r['frames_revised']} frame(s) revised", file=file)
     if "median_ms_per_stage" in summary:
         print("median ms per stage: " + ", ".join(f"{k} {v:.2f}" for k, v in summary["median_ms_per_stage"].items()),
               file=file)

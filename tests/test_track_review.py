@@ -166,3 +166,16 @@ def test_track_sequence_writes_the_held_frames_in_order_when_stopped_and_at_the_
     np.testing.assert_array_equal(written[0]["frame"], np.arange(12))
     np.testing.assert_array_equal(written[0]["q"], written[1]["q"])
     assert json.loads((tmp_path / "review" / "summary.json").read_text())["review"]["reviews"] == 1
+
+
+def test_the_cli_summary_accounts_for_the_review(tmp_path):
+    import io
+
+    from jaxhand.cli_track import print_summary
+
+    summary = {"frames": 90, "model": "hand", "lost_frames": 0,
+               "review": {"jump_deg": 15.0, "frames": 30, "reviews": 2, "met": 1, "frames_revised": 6, "s": 12.34}}
+    text = io.StringIO()
+    print_summary(summary, tmp_path, file=text)
+    assert ("review: 2 jump(s) of over 15 deg tracked back (12.3 s), 1 met the forward track, 6 frame(s) revised\n"
+            in text.getvalue())
