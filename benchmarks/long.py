@@ -42,6 +42,7 @@ from jaxhand.track import (  # noqa: E402
     PRESETS,
     AbstractFrontEnd,
     ImageFrontEnd,
+    Review,
     TrackConfig,
     Tracker,
     accuracy_summary,
@@ -106,6 +107,8 @@ class _Run:
             frontend = RefreshAtTruth(frontend, seq.q)
         self.tracker = Tracker(seq.model, seq.cameras, frontend, config, dt_s=float(seq.times_s[1] - seq.times_s[0]))
         self.state = self.tracker.init(seq.q[header["start"]])
+        self.review = Review(self.tracker)   # the frames before a trusted jump tracked again (hypotheses.review_*)
+        self.seconds: dict[int, float] = {}
         self.path = RUNS / f"{seq.name}_{seq.n_frames}_{variant}{_stretch(header)}.jsonl"
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.file = self.path.open("w", buffering=1)   # line-buffered: each frame is on disk when written
@@ -114,7 +117,18 @@ class _Run:
     def step(self, images, k: int) -> None:
         t0 = time.perf_counter()
         self.state, rep = self.tracker.step(self.state, images, k, float(self.seq.times_s[k]))
-        seconds = time.perf_counter() - t0
+        self.seconds[k] = time.perf_counter() - t0
+        for _, final in self.review.push(self.state, images, rep):
+            self.write(final)
+
+    def close(self) -> None:
+        """The frames the review still holds, then the file."""
+        for _, final in self.review.flush():
+            self.write(final)
+        self.file.close()
+
+    def write(self, rep) -> None:
+        k, seconds = rep.frame, self.seconds.pop(rep.frame)
         qt = self.seq.q[k]
         tip = accuracy_summary(self.seq.model, self.seq.cameras, rep.q_filtered[None], qt[None])["tip_error_px"]
         row = {"k": k, "qf": _rounded(rep.q_filtered), "qs": _rounded(rep.q_solved), "qt": _rounded(qt),
@@ -221,7 +235,7 @@ def track_long(name: str, frames: int, variants: dict[str, tuple[TrackConfig, bo
                 print(f"  {name} {frames} frames: {k + 1} done, {time.perf_counter() - t0:.0f} s", flush=True)
     finally:
         for r in runs:
-            r.file.close()
+            r.close()
 
 
 def main(argv=None) -> int:

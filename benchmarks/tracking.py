@@ -59,6 +59,7 @@ from jaxhand.track import (  # noqa: E402
     PRESETS,
     ExactFrontEnd,
     ImageFrontEnd,
+    Review,
     TrackConfig,
     Tracker,
     accuracy_summary,
@@ -109,10 +110,12 @@ def track_config(solver: str, steps: int, theta: float, reextract: int, robust: 
 def run(seq, images, extract, config: TrackConfig) -> dict:
     tracker = Tracker(seq.model, seq.cameras, extract, config, dt_s=float(seq.times_s[1] - seq.times_s[0]))
     state = tracker.init(seq.q[0])
+    review = Review(tracker)   # the frames before a trusted jump tracked again (hypotheses.review_*)
     reports = []
     for k, imgs in enumerate(images):
         state, rep = tracker.step(state, imgs, k, float(seq.times_s[k]))
-        reports.append(rep)
+        reports += [r for _, r in review.push(state, imgs, rep)]
+    reports += [r for _, r in review.flush()]
     steady = reports[1:]  # frame 0 pays for compilation
     total = [sum(v for key, v in r.timings_s.items() if "." not in key) for r in steady]
     q_f = np.stack([r.q_filtered for r in reports])
@@ -133,6 +136,7 @@ def run(seq, images, extract, config: TrackConfig) -> dict:
         "median_ms": {s: 1e3 * float(np.median([r.timings_s.get(s, 0.0) for r in steady])) for s in stages},
         "q_filtered": q_f, "q_solved": q_s,
         **{k: acc[k] for k in ("palm_error", "palm_rotation_deg") if k in acc},
+        **({"review": review.summary()} if review.frames else {}),
     }
 
 
