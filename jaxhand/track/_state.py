@@ -74,7 +74,7 @@ class StepReport:
     timings_s: Mapping[str, float]
     diagnostics: FrontEndDiagnostics
     image_score: float = float("nan")   # the front end's score of q_filtered (NaN: none)
-    hypothesis: str = "prediction"   # the kind of start that won (jaxhand.track._hypotheses.LABELS)
+    hypothesis: str = "prediction"   # the kind of start that won (_hypotheses.LABELS); "review": tracked back (_review)
     starts: int = 1                  # the starts solved
     reinitialised: bool = False      # the first frame not lost after a lost one
     seen: np.ndarray | None = None   # per q entry, the share of image information the features give it (_seen)
