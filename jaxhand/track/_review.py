@@ -4,9 +4,9 @@ One view leaves a finger's depth ambiguous near the angle at which its link lies
 viewing ray (its fold): both sides show the link at nearly the same place. A solve can follow
 the wrong side for several frames while the image fits both alike, until a start on the other
 side wins (a jump; :attr:`~jaxhand.track.HypothesisConfig.review_jump_deg`, in a frame of
-confidence ``review_trust`` at least). The frames before
-the jump then hold the wrong side, and only time tells: from the jump's estimate, the same
-motion followed backward stays on the side the jump found.
+confidence ``review_trust`` at least). The frames before the jump then hold the wrong side, and
+only the motion tells: followed backward from the jump's estimate, it stays on the side the
+jump found.
 
 So the review holds the last ``review_frames`` frames. After a jump it tracks them again from
 the jump's estimate, newest first, with the tracker's own step (the front end learns nothing
