@@ -77,7 +77,8 @@ class HypothesisConfig:
             estimate moved some joint angle more than this from the prediction (a jump to another
             branch), the frames before it are tracked again backward from it, and those the
             backward track explains as well replace the forward ones (:mod:`jaxhand.track._review`;
-            0: off). Results then leave the tracker ``review_frames`` frames late.
+            0: off). Results then leave the tracker ``review_frames`` frames late, and that many
+            frames' images are held.
         review_trust: host, in [0, 1]. The confidence a jump's frame needs to be reviewed: a jump
             in doubt is more often the mistake than the frames before it.
         review_frames: host. How many frames a review may go back (and the results' delay).
