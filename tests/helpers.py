@@ -1,5 +1,6 @@
 """Helpers shared by the tests."""
 
+import cv2
 import jax
 import numpy as np
 
@@ -71,3 +72,23 @@ def oracle(model, cameras, truth, noise_px=0.3, seed=0, drop_frame=None) -> Func
         return feats[frame]
 
     return FunctionFrontEnd(extract, reextracts=False)
+
+
+def stopping_oracle(seq, at: int, exc=KeyboardInterrupt) -> FunctionFrontEnd:
+    """:func:`oracle` of ``seq`` that raises ``exc`` when asked for frame ``at`` (a run stopped there)."""
+    inner = oracle(seq.model, seq.cameras, seq.q)
+
+    def extract(images, q, state, frame):
+        if frame == at:
+            raise exc()
+        return inner.fn(images, q, state, frame)
+
+    return FunctionFrontEnd(extract, reextracts=False)
+
+
+def blank_frames(folder, n: int, size) -> object:
+    """``folder`` made and filled with ``n`` black PNG frames of ``size`` (w, h); returns it."""
+    folder.mkdir()
+    for k in range(n):
+        cv2.imwrite(str(folder / f"f{k:03d}.png"), np.zeros(size[::-1], np.uint8))
+    return folder

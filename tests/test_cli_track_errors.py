@@ -8,7 +8,7 @@ import warnings
 import cv2
 import numpy as np
 import pytest
-from helpers import FunctionFrontEnd, fit_camera, oracle
+from helpers import blank_frames, fit_camera, oracle, stopping_oracle
 
 import jaxhand as jh
 from jaxhand.cli import main
@@ -195,28 +195,13 @@ def seq():
 
 @pytest.fixture
 def frames_dir(tmp_path, seq):
-    d = tmp_path / "frames"
-    d.mkdir()
-    for k in range(seq.n_frames):
-        cv2.imwrite(str(d / f"f{k:03d}.png"), np.zeros(SIZE[::-1], np.uint8))
-    return d
-
-
-def _stopping(seq, at: int, exc=KeyboardInterrupt):
-    inner = oracle(seq.model, seq.cameras, seq.q)
-
-    def extract(images, q, state, frame):
-        if frame == at:
-            raise exc()
-        return inner.fn(images, q, state, frame)
-
-    return FunctionFrontEnd(extract, reextracts=False)
+    return blank_frames(tmp_path / "frames", seq.n_frames, SIZE)
 
 
 def test_interrupted_run_says_so_and_resumes(tmp_path, seq, frames_dir):
     out = tmp_path / "out"
     with pytest.raises(KeyboardInterrupt, match=r"stopped at frame 6; the 6 finished frame\(s\) in .* --resume"):
-        track_sequence(seq.model, seq.cameras, [FrameSource(frames_dir)], seq.q[0], out, _stopping(seq, 6),
+        track_sequence(seq.model, seq.cameras, [FrameSource(frames_dir)], seq.q[0], out, stopping_oracle(seq, 6),
                        truth=seq.q, video=True)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["interrupted"] is True and summary["interrupted_at_frame"] == 6 and summary["frames"] == 6

@@ -5,7 +5,7 @@ import json
 import cv2
 import numpy as np
 import pytest
-from helpers import FunctionFrontEnd, oracle
+from helpers import blank_frames, oracle, stopping_oracle
 
 import jaxhand as jh
 from jaxhand import InputError
@@ -130,26 +130,15 @@ def seq():
 
 @pytest.fixture
 def frames_dir(tmp_path, seq):
-    d = tmp_path / "frames"
-    d.mkdir()
-    for k in range(seq.n_frames):
-        cv2.imwrite(str(d / f"f{k:03d}.png"), np.zeros(SIZE[::-1], np.uint8))
-    return d
+    return blank_frames(tmp_path / "frames", seq.n_frames, SIZE)
 
 
 def test_track_sequence_writes_the_held_frames_in_order_when_stopped_and_at_the_end(tmp_path, seq, frames_dir):
     config = TrackConfig(hypotheses=HypothesisConfig(rest=True, review_jump_deg=15.0, review_frames=4))
-    inner = oracle(seq.model, seq.cameras, seq.q)
-
-    def extract(images, q, state, frame):
-        if frame == 7:
-            raise KeyboardInterrupt()
-        return inner.fn(images, q, state, frame)
-
     out = tmp_path / "stopped"
     with pytest.raises(KeyboardInterrupt, match=r"stopped at frame 7; the 7 finished frame\(s\)"):
         track_sequence(seq.model, seq.cameras, [FrameSource(frames_dir)], seq.q[0], out,
-                       FunctionFrontEnd(extract, reextracts=False), config=config, video=True)
+                       stopping_oracle(seq, 7), config=config, video=True)
     assert list(read_angles_csv(out / "angles.csv")["frame"]) == list(range(7))
     assert cv2.VideoCapture(str(out / "overlay.mp4")).get(cv2.CAP_PROP_FRAME_COUNT) == 7
     runs = {}
