@@ -21,6 +21,8 @@ seeds: two settings whose ranges overlap have not been told apart. Prints a tabl
     .venv/bin/python benchmarks/devset.py --settings robust-limits --start-deg 2 --seeds 3   # the spread from chance
     .venv/bin/python benchmarks/devset.py --only open_close --settings robust-temporal --no-exact --per-frame \
         --overlays /tmp/oc   # each frame's error, confidence and winning start; frames over 8 px drawn
+    .venv/bin/python benchmarks/devset.py --only open_close --degrade 0.6,5 --no-exact   # the cluttered copy's
+                                                                   # blur and noise without its clutter
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ import argparse
 import itertools
 import json
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -41,6 +44,7 @@ from _common import REPO, RESULTS, add_runtime_option, apply_runtime, environmen
 
 from jaxhand.io import load_devset, open_frames  # noqa: E402
 from jaxhand.kinematics import project_pose  # noqa: E402
+from jaxhand.render import degrade  # noqa: E402
 from jaxhand.track import (  # noqa: E402
     PRESETS,
     ExactFrontEnd,
@@ -56,6 +60,7 @@ from jaxhand.track import (  # noqa: E402
 )
 from jaxhand.viz import draw_view  # noqa: E402
 
+DEGRADE_SEED = 20240925   # the noise seed of the dev set's cluttered copy (data/mujoco/README.md)
 SEQUENCES = ("open_close", "index_over_middle", "thumb_opposition", "fast_spread", "wave_two_cameras")
 
 #: Named settings: changes to the default TrackConfig (as in TrackConfig.merged).
@@ -170,14 +175,31 @@ def write_overlay(path: Path, seq, image, k: int, q) -> None:
     cv2.imwrite(str(path), cv2.resize(np.concatenate(panels, 1), None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST))
 
 
+def degraded_copy(seq, blur_px: float, noise: float, out: Path) -> list[Path]:
+    """Each camera's frames blurred by ``blur_px`` and with ``noise`` grey levels of Gaussian noise
+    (:func:`jaxhand.render.degrade`; one generator over the frames in order, seeded as the dev
+    set's cluttered copy), written under ``out``: the cluttered copy's recipe without its clutter."""
+    rng = np.random.default_rng(DEGRADE_SEED)
+    folders = []
+    for c, files in enumerate(seq.truth.image_files):
+        folder = out / f"cam{c}"
+        folder.mkdir(parents=True)
+        for f in files:
+            image = cv2.imread(str(seq.folder / f), cv2.IMREAD_GRAYSCALE)
+            cv2.imwrite(str(folder / Path(f).name), degrade(image, blur_px, noise, rng))
+        folders.append(folder)
+    return folders
+
+
 def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: float = 0.5, q0=None,
-          per_frame: bool = False, overlays: Path | None = None):
+          per_frame: bool = False, overlays: Path | None = None, folders: list[Path] | None = None):
     m, cams = seq.model, seq.truth.cameras
     n = len(seq.truth.q) if frames is None else min(frames, len(seq.truth.q))
     if exact:
         frontend, images = ExactFrontEnd(m, cams, seq.truth.q[:n], noise_px=noise_px, seed=0), None
     else:
-        folders = [seq.folder / Path(f[0]).parent for f in seq.truth.image_files]
+        if folders is None:
+            folders = [seq.folder / Path(f[0]).parent for f in seq.truth.image_files]
         images = open_frames(folders, fps=seq.truth.fps)
         frontend = image_front_end(m, cams, config.image, images, n)
     tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
@@ -270,6 +292,16 @@ def run_rows(records) -> list[list[str]]:
     return rows
 
 
+def _blur_noise(text: str) -> tuple[float, float]:
+    try:
+        blur, noise = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected BLUR,NOISE (two numbers, e.g. 0.6,5), got {text!r}") from None
+    if not (blur >= 0 and noise >= 0):
+        raise argparse.ArgumentTypeError(f"blur and noise must be >= 0, got {text!r}")
+    return blur, noise
+
+
 def _share(x) -> str:
     return "-" if x is None else f"{100 * x:.0f}%"
 
@@ -305,6 +337,10 @@ def main(argv=None) -> None:
     p.add_argument("--overlays", type=Path, default=None,
                    help=f"a folder: for each image run, the frames over {BAD_PX:g} px drawn (truth green, estimate "
                         "red) under <folder>/<sequence>_<setting>_<seed>/")
+    p.add_argument("--degrade", type=_blur_noise, default=None, metavar="BLUR,NOISE",
+                   help="track copies of the frames blurred (Gaussian sigma, px) and with Gaussian noise (grey "
+                        "levels) as the cluttered copy was, e.g. 0.6,5 on open_close: what noise alone costs; "
+                        "the sequence is recorded as <name>+blur<B>+noise<N>")
     add_runtime_option(p)
     args = p.parse_args(argv)
     if args.seeds < 1 or (args.seeds > 1 and not args.start_deg > 0):
@@ -315,8 +351,13 @@ def main(argv=None) -> None:
                 "(the preset robust-temporal is robust-limits+temporal+restore)")
     apply_runtime(args)
     rows, records = [], []
+    scratch = tempfile.TemporaryDirectory(prefix="devset_degraded_")
     for name in args.only.split(","):
         seq = load_devset(REPO / "data" / "mujoco" / name)
+        folders = None
+        if args.degrade is not None:
+            folders = degraded_copy(seq, *args.degrade, Path(scratch.name) / name)
+            name = f"{name}+blur{args.degrade[0]:g}+noise{args.degrade[1]:g}"
         for setting in args.settings.split(","):
             config = TrackConfig().merged(SETTINGS[setting]).merged(args.extra)
             reference = config if args.reference is None else TrackConfig().merged(SETTINGS[args.reference])
@@ -326,7 +367,8 @@ def main(argv=None) -> None:
                 where = None if args.overlays is None else args.overlays / f"{name}_{setting}_{seed}"
                 used = reference if exact else config
                 r = track(seq, used, exact, args.frames, noise_px=args.reference_noise_px,
-                          q0=start_pose(seq, args.start_deg, seed), per_frame=args.per_frame, overlays=where)
+                          q0=start_pose(seq, args.start_deg, seed), per_frame=args.per_frame, overlays=where,
+                          folders=folders)
                 rec = {"sequence": name, "setting": setting, "features": "exact" if exact else "image",
                        "start_deg": args.start_deg, "seed": seed, **r, "config": config_to_dict(used)}
                 records.append(rec)

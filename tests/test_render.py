@@ -8,7 +8,7 @@ from helpers import fit_camera
 import jaxhand as jh
 from jaxhand.camera import look_at_rotation
 from jaxhand.model import model_from_dict
-from jaxhand.render import RenderConfig, make_background, render_frame
+from jaxhand.render import RenderConfig, degrade, make_background, render_frame
 
 
 def _pill_model(pills):
@@ -288,6 +288,24 @@ def test_noise_and_blur():
     blurred = render_frame(m, cam, q, RenderConfig(blur_sigma_px=2.0)).image.astype(float)
     sharp = render_frame(m, cam, q).image.astype(float)
     assert np.abs(np.diff(blurred, axis=1)).max() < 0.6 * np.abs(np.diff(sharp, axis=1)).max()
+
+
+def test_degrade_blurs_adds_seeded_noise_and_rounds():
+    flat = np.full((60, 80), 100.4)
+    np.testing.assert_array_equal(degrade(flat), np.full((60, 80), 100, np.uint8))   # rounded only
+    a = degrade(flat, noise_sigma=5.0, rng=np.random.default_rng(7))
+    np.testing.assert_array_equal(a, degrade(flat, noise_sigma=5.0, rng=np.random.default_rng(7)))
+    assert a.dtype == np.uint8 and abs(np.std(a.astype(float)) - 5.0) < 0.3
+    step = np.zeros((20, 40))
+    step[:, 20:] = 200.0
+    blurred = degrade(step, blur_sigma_px=1.0).astype(float)
+    assert blurred[0, 19] > 20 and blurred[0, 20] < 180   # the step is spread over pixels
+    np.testing.assert_allclose(blurred.mean(), step.mean(), atol=1.0)
+    assert degrade(np.full((4, 4), 300.0))[0, 0] == 255   # clipped to 8 bits
+    with pytest.raises(jh.InputError, match="must be >= 0"):
+        degrade(flat, blur_sigma_px=-1.0)
+    with pytest.raises(jh.InputError, match="needs a random generator"):
+        degrade(flat, noise_sigma=2.0)
 
 
 def test_bad_inputs():

@@ -2,6 +2,7 @@
 
 - :func:`render_frame`: binary silhouettes or shaded grey images of any model's pills for any
   orthographic or perspective camera, with per-pixel link-ID and depth maps and per-link visibility.
+- :func:`degrade`: a camera's blur and sensor noise on any image (the dev set's recipe).
 - :func:`make_preset`: the experiments of thesis ch. 6 and DigitEyes §6 as :class:`Sequence`\\ s.
 - :func:`joint_trajectory` / :func:`minimum_jerk`: smooth motion through key poses.
 - :func:`write_sequence` / :func:`load_sequence`: folders of PNG frames with a ground-truth JSON.
@@ -10,6 +11,7 @@
 from ._config import RenderConfig as RenderConfig
 from ._config import make_background as make_background
 from ._frame import RenderResult as RenderResult
+from ._frame import degrade as degrade
 from ._frame import render_frame as render_frame
 from ._io import SequenceFolder as SequenceFolder
 from ._io import load_sequence as load_sequence
@@ -25,7 +27,7 @@ from ._trajectory import joint_trajectory as joint_trajectory
 from ._trajectory import min_jerk_profile as min_jerk_profile
 from ._trajectory import minimum_jerk as minimum_jerk
 
-__all__ = ["RenderConfig", "RenderResult", "render_frame", "make_background",
+__all__ = ["RenderConfig", "RenderResult", "render_frame", "degrade", "make_background",
            "Sequence", "make_preset", "preset_names", "PRESET_DESCRIPTIONS", "parse_size",
            "fit_orthographic", "fit_perspective", "joint_trajectory", "minimum_jerk", "min_jerk_profile",
            "write_sequence", "load_sequence", "SequenceFolder"]

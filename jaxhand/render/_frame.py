@@ -28,7 +28,24 @@ from ..model import Model
 from ._config import RenderConfig, make_background
 from ._raycast import cast, pill_normals, pills_in_camera, ray_grid
 
-__all__ = ["RenderResult", "render_frame", "pill_geometry"]
+__all__ = ["RenderResult", "render_frame", "pill_geometry", "degrade"]
+
+
+def degrade(image, blur_sigma_px: float = 0.0, noise_sigma: float = 0.0,
+            rng: np.random.Generator | None = None) -> np.ndarray:
+    """``image`` as a camera would give it: a Gaussian blur of ``blur_sigma_px`` (0: none), then
+    Gaussian noise of ``noise_sigma`` grey levels drawn from ``rng`` (0: none), rounded and
+    clipped to 8 bits. The dev set's cluttered copy was made this way (data/mujoco/README.md)."""
+    if blur_sigma_px < 0 or noise_sigma < 0:
+        raise InputError(f"degrade: blur and noise must be >= 0, got {blur_sigma_px}, {noise_sigma}")
+    if noise_sigma > 0 and rng is None:
+        raise InputError("degrade: noise needs a random generator (rng=np.random.default_rng(seed))")
+    image = np.asarray(image, float)
+    if blur_sigma_px > 0:
+        image = cv2.GaussianBlur(image, (0, 0), blur_sigma_px)
+    if noise_sigma > 0:
+        image = image + rng.normal(0.0, noise_sigma, image.shape)
+    return np.clip(np.rint(image), 0, 255).astype(np.uint8)
 
 
 @dataclass(frozen=True)
@@ -150,12 +167,8 @@ def render_frame(model: Model, camera, q, config: RenderConfig | None = None, *,
         samples[mask] = fg
         coverage = mask.reshape(h, k, w, k).mean(axis=(1, 3))
         image = samples.reshape(h, k, w, k).mean(axis=(1, 3)) + (1.0 - coverage) * background
-    if config.blur_sigma_px > 0:
-        image = cv2.GaussianBlur(image, (0, 0), config.blur_sigma_px)
-    if config.noise_sigma > 0:
-        rng = np.random.default_rng([int(config.seed), int(frame_index)])
-        image = image + rng.normal(0.0, config.noise_sigma, image.shape)
-    image = np.clip(np.rint(image), 0, 255).astype(np.uint8)
+    image = degrade(image, config.blur_sigma_px, config.noise_sigma,
+                    np.random.default_rng([int(config.seed), int(frame_index)]))
 
     c = (k - 1) // 2  # pixel-centre sample of each block
     link_id = np.ascontiguousarray(zbuf.link_id[c::k, c::k])
