@@ -351,11 +351,11 @@ def main(argv=None) -> None:
                 "(the preset robust-temporal is robust-limits+temporal+restore)")
     apply_runtime(args)
     rows, records = [], []
-    scratch = tempfile.TemporaryDirectory(prefix="devset_degraded_")
+    scratch = None if args.degrade is None else tempfile.TemporaryDirectory(prefix="devset_degraded_")
     for name in args.only.split(","):
         seq = load_devset(REPO / "data" / "mujoco" / name)
         folders = None
-        if args.degrade is not None:
+        if scratch is not None:
             folders = degraded_copy(seq, *args.degrade, Path(scratch.name) / name)
             name = f"{name}+blur{args.degrade[0]:g}+noise{args.degrade[1]:g}"
         for setting in args.settings.split(","):

@@ -167,8 +167,8 @@ def render_frame(model: Model, camera, q, config: RenderConfig | None = None, *,
         samples[mask] = fg
         coverage = mask.reshape(h, k, w, k).mean(axis=(1, 3))
         image = samples.reshape(h, k, w, k).mean(axis=(1, 3)) + (1.0 - coverage) * background
-    image = degrade(image, config.blur_sigma_px, config.noise_sigma,
-                    np.random.default_rng([int(config.seed), int(frame_index)]))
+    rng = np.random.default_rng([int(config.seed), int(frame_index)]) if config.noise_sigma > 0 else None
+    image = degrade(image, config.blur_sigma_px, config.noise_sigma, rng)
 
     c = (k - 1) // 2  # pixel-centre sample of each block
     link_id = np.ascontiguousarray(zbuf.link_id[c::k, c::k])
