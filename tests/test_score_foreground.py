@@ -159,6 +159,32 @@ def test_sequence_background_drops_a_mode_the_tracked_model_covers():
     assert known[0, 0] and abs(background[0, 0] - (frames[3][0, 0] / 2 + frames[4][0, 0] / 2)) < 1e-4
 
 
+def test_sequence_background_keeps_a_hand_resting_beyond_the_first_silhouette():
+    """A finger that moves off the first silhouette and rests there for most frames is the
+    commonest grey there, and a tracked model a few pixels short of it leaves it "free"; where
+    the first frame showed background, only greys agreeing with it are learned, so the resting
+    finger stays foreground. Without the anchor both learn the finger as background."""
+    rng = np.random.default_rng(4)
+    bg = cv2.GaussianBlur(rng.uniform(40, 200, (60, 80)), (0, 0), 3)
+    start, rest = np.zeros(bg.shape, bool), np.zeros(bg.shape, bool)
+    start[20:40, 10:18] = True
+    rest[20:40, 50:58] = True
+    frames = []
+    for k in range(12):
+        f = bg + rng.normal(0, 2, bg.shape)
+        f[start if k == 0 else rest] = 230
+        frames.append(np.clip(np.rint(f), 0, 255).astype(np.uint8))
+    short = np.zeros(bg.shape, bool)
+    short[20:40, 50:52] = True   # the tracked model covers 2 of the finger's 8 columns
+    anchored, plain = SequenceBackground(frames, start), SequenceBackground(frames, start, anchor_clear=False)
+    for model in (anchored, plain):
+        for k in (1, 2, 3):
+            model.observe(frames[k], short)
+    assert anchored.mask(frames[5])[rest].mean() > 0.95   # all but corners the opening rounds off
+    assert plain.mask(frames[5])[rest].mean() < 0.05   # learned as background (measured 0)
+    assert anchored.mask(frames[5])[~rest].mean() < 0.01
+
+
 def test_sequence_background_patch_finds_a_faint_part():
     """An object passing in one frame, 3 noise levels brighter than the background: the
     per-pixel test (4 levels) misses most of it, the 3x3 patch test finds it without growing

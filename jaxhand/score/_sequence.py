@@ -6,12 +6,16 @@ A pixel's background grey is known in one of two ways, the first preferred:
 - **seen**: the mean over the frames so far where the tracked model, grown by ``margin_px``, left
   the pixel free (:meth:`SequenceBackground.observe`, after each frame);
 - **anchored mode**: the most frequent grey over frames spread across the sequence, among the
-  frames that can show background there: every frame outside the hand at the first, known pose;
-  inside it, only the frames that differ from the first (the hand has moved away), a grey
-  counting more the nearer it lies to the background around the hand. A mode the tracked model
-  has been seen covering (the pixel matched it deep inside the model's silhouette on
-  ``min_covered`` frames) was a hand part that stayed put, a fist over the fingers' first place,
-  and is dropped.
+  frames that can show background there: inside the hand at the first, known pose, only the
+  frames that differ from the first (the hand has moved away), a grey counting more the nearer
+  it lies to the background around the hand; everywhere else, every frame.
+
+Where the first frame shows background (outside its silhouette grown by ``margin_px``), both
+count only greys that agree with it: a hand that comes to rest there, a little beyond the
+tracked model's outline, is neither the commonest grey nor "seen" background. A mode the
+tracked model has been seen covering (the pixel matched it deep inside the model's silhouette on
+``min_covered`` frames) was a hand part that stayed put, a fist over the fingers' first place, and
+is dropped.
 
 A pixel known neither way (the palm that never moves) is foreground. A pixel differs from its
 background where its grey does by ``k`` noise levels, or where the mean squared difference over
@@ -61,15 +65,17 @@ def _noise(stack: np.ndarray, hand: np.ndarray, min_noise: float) -> float:
     return max(float(1.4826 * np.median(d) / np.sqrt(2)), min_noise)
 
 
-def _anchored_mode(stack: np.ndarray, core: np.ndarray, noise: float, min_frames: int
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Each pixel's most frequent grey among the frames that can show background there (all of
-    them outside ``core``; inside, those differing from the first frame), refined to the mean of
-    those near it; and where at least ``min_frames`` frames support it. Inside ``core`` a grey
+def _anchored_mode(stack: np.ndarray, core: np.ndarray, noise: float, min_frames: int,
+                   clear: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel's most frequent grey among the frames that can show background there (inside
+    ``core``, those differing from the first frame; in ``clear``, where the first frame shows
+    background, those agreeing with it; elsewhere all of them), refined to the mean of those near
+    it; and where at least ``min_frames`` frames support it. Inside ``core`` a grey
     counts up to twice as much the nearer it lies to the background outside, inpainted across
     the hand: of a fingertip that rested where the finger started and the background seen as
     often, the background wins."""
-    candidate = np.where(core, np.abs(stack - stack[0]) > _AGREE * noise, True)
+    first = np.abs(stack - stack[0]) > _AGREE * noise
+    candidate = np.where(core, first, True if clear is None else ~(clear & first))
     width = max(4.0, noise)
     n_bins = int(256 / width) + 1
     bins = np.minimum((stack / width).astype(np.intp), n_bins - 1)
@@ -106,7 +112,7 @@ class SequenceBackground(AbstractForeground):
 
     def __init__(self, frames, hand_mask, *, k: float = 4.0, patch_level: float = 3.0, fill_px: int = 100,
                  margin_px: int = 3, rim_px: int = 0, min_frames: int = 5, min_covered: int = 2,
-                 min_noise: float = 3.0, open_px: int = 1):
+                 min_noise: float = 3.0, open_px: int = 1, anchor_clear: bool = True):
         """``frames``: (N, H, W[, 3]) frames spread over the sequence, the first frame first;
         ``hand_mask``: (H, W) bool, the model's silhouette at the first frame's known pose;
         ``k``: per-pixel difference (noise levels); ``patch_level``: 3x3 mean squared difference
@@ -115,7 +121,10 @@ class SequenceBackground(AbstractForeground):
         background; ``rim_px``: how far inside the first silhouette's outline the first frame
         starts to count as hand (0: from the outline; a static part's outline then follows the
         model's); ``min_frames``: frames a mode needs; ``min_covered``: frames a mode may
-        match under the tracked model before it is dropped."""
+        match under the tracked model before it is dropped; ``anchor_clear``: where the first
+        silhouette grown by ``margin_px`` leaves the first frame free, only greys agreeing with
+        the first frame count as background (a hand resting beyond the tracked model's outline
+        is not learned)."""
         stack = np.stack([as_grey(f, f"frames[{i}]") for i, f in enumerate(frames)]).astype(np.float32)
         if len(stack) == 0:
             raise InputError("frames: need at least one frame")
@@ -126,7 +135,9 @@ class SequenceBackground(AbstractForeground):
         self.margin_px, self.open_px, self.min_covered = int(margin_px), int(open_px), int(min_covered)
         self.noise = _noise(stack, hand, min_noise)
         self._core = cv2.erode(hand.astype(np.uint8), _disc(rim_px)) > 0 if rim_px > 0 else hand
-        self.mode, self._mode_known = _anchored_mode(stack, self._core, self.noise, min_frames)
+        self._first = stack[0]
+        self._clear = ~(cv2.dilate(hand.astype(np.uint8), _disc(self.margin_px)) > 0) if anchor_clear else None
+        self.mode, self._mode_known = _anchored_mode(stack, self._core, self.noise, min_frames, self._clear)
         self._seen_sum = np.zeros(hand.shape, np.float64)
         self._seen = np.zeros(hand.shape, np.int32)
         self._covered = np.zeros(hand.shape, np.int32)
@@ -138,6 +149,8 @@ class SequenceBackground(AbstractForeground):
         if sil.shape != grey.shape:
             raise InputError(f"silhouette: expected shape {grey.shape} (the frames'), got {sil.shape}")
         free = ~(cv2.dilate(sil.astype(np.uint8), _disc(self.margin_px)) > 0)
+        if self._clear is not None:
+            free &= ~self._clear | (np.abs(grey - self._first) <= _AGREE * self.noise)
         self._seen_sum += np.where(free, grey, 0.0)
         self._seen += free
         inside = cv2.erode(sil.astype(np.uint8), _disc(self.margin_px)) > 0
