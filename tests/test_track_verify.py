@@ -138,3 +138,27 @@ def test_a_wrong_fold_is_searched_again_from_its_own_starts(verify_below, thumb)
     assert len(frontend.starts) > 3                           # the prediction's search, then one per start
     assert report.timings_s["verify"] > 0.0
     np.testing.assert_allclose(np.asarray(state.ghk.v)[joints], 0.0)   # the jump is not motion
+
+
+class _SpeckFrontEnd(_FoldFrontEnd):
+    """Every finger well supported, but a blob of unexplained foreground (a speck of the
+    background model, or a shadow) beside the hand."""
+
+    def support(self, images, q, state, margin_px=1):
+        return ImageSupport(link_score=np.full((1, self.m.n_links), 0.95), unexplained_px=100.0)
+
+
+def test_unexplained_foreground_alone_searches_no_finger_again():
+    """The blob takes the frame's confidence to 0, but names no finger: no finger is searched again."""
+    m, joints = _hand()
+    truth = np.clip(np.asarray(m.q_default, float), m.q_lower, m.q_upper)
+    truth[joints] = np.radians([-50.0, -60.0, -50.0])
+    rig = (fit_camera(m, truth),)
+    config = TrackConfig(hypotheses=HypothesisConfig(verify_below=0.5), support=SupportConfig(enabled=True),
+                         filter=FilterConfig(report_solve=True))
+    frontend = _SpeckFrontEnd(m, rig, truth, truth, joints)
+    tracker = Tracker(m, rig, frontend, config)
+    _, report = tracker.step(tracker.init(truth), [None], 0)
+    assert report.confidence == 0.0 and report.hypothesis == "prediction"
+    assert len(frontend.starts) == 1   # the prediction's search only
+    np.testing.assert_allclose(report.q_solved, truth, atol=1e-6)

@@ -62,8 +62,9 @@ class HypothesisConfig:
         finger_deg: host, deg. The bends of those starts, each added to every flexion hinge of
             the finger (axis parallel to its last hinge's) towards the wider side of the hinge's
             range (a hand's flexion); negative: the other way.
-        verify_below: host, in [0, 1]. After a frame's estimate whose image support (the
-            support rule's confidence) is below this, the finger whose links the image supports
+        verify_below: host, in [0, 1]. After a frame's estimate whose fingers' image support (the
+            support rule's confidence without its unexplained-foreground part, which names no
+            finger) is below this, the finger whose links the image supports
             least, where it is a planar finger (not a thumb), is searched again: from the estimate
             with that finger bent by each of ``finger_deg``, with each of its hinges reflected
             across its fold, and with its joints at the last trusted pose, each start with

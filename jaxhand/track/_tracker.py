@@ -236,24 +236,26 @@ class Tracker:
         full[good] = scores
         return full
 
-    def _support(self, images, q, fe_state) -> tuple[float, dict[int, float], np.ndarray]:
+    def _support(self, images, q, fe_state) -> tuple[float, dict[int, float], np.ndarray, float]:
         """The image's support of ``q`` as a confidence, the lowest of the weakest finger's (by its
         tip's link alone with ``support.tip_links``), the weakest whole finger's
         (``support.whole_lost``) and the unexplained foreground's
-        (:mod:`jaxhand.track._support`; 1 when the front end measures none), and each finger's
-        support (all its links), and the q entries that move no judged link (hidden joints)."""
+        (:mod:`jaxhand.track._support`; 1 when the front end measures none), each finger's
+        support (all its links), the q entries that move no judged link (hidden joints), and the
+        confidence of the fingers' support alone (without the unexplained foreground)."""
         config = self.config.support
         measured = self.frontend.support(images, q, fe_state, config.margin_px)
         if measured is None:
-            return 1.0, {}, np.zeros(0, int)
+            return 1.0, {}, np.zeros(0, int), 1.0
         fingers = finger_supports(measured.link_score, self._finger)
         judged = (finger_supports(tip_link_scores(measured.link_score, self.model.tip_links), self._finger)
                   if config.tip_links else fingers)
         weakest = min(judged.values(), default=float("nan"))
-        confidence = min(support_confidence(weakest, config), whole_finger_confidence(fingers, config),
-                         unexplained_confidence(measured.unexplained_px, config))
+        finger_confidence = min(support_confidence(weakest, config), whole_finger_confidence(fingers, config))
+        confidence = min(finger_confidence, unexplained_confidence(measured.unexplained_px, config))
         judged_link = np.isfinite(np.asarray(measured.link_score, float).reshape(-1, self.model.n_links)).any(0)
-        return confidence, fingers, np.flatnonzero(~(self._moves & judged_link).any(1) & self._moves.any(1))
+        hidden = np.flatnonzero(~(self._moves & judged_link).any(1) & self._moves.any(1))
+        return confidence, fingers, hidden, finger_confidence
 
     def step(self, state: TrackState, images: Sequence[np.ndarray | None], frame: int = 0, time_s: float = 0.0,
              proposals=None, terms: tuple = (), learn: bool = True) -> tuple[TrackState, StepReport]:
@@ -333,7 +335,8 @@ class Tracker:
             filtered, ghk_next = np.asarray(state.q_last), held_filter(state.q_last)
         weak, finger_level, hidden = -1, self.config.hypotheses.finger_level, np.zeros(0, int)
         if (self.config.support.enabled or finger_level) and not lost:
-            support, fingers, hidden = measured if measured is not None else self._support(images, filtered, fe_state)
+            support, fingers, hidden, _ = measured if measured is not None else self._support(images, filtered,
+                                                                                               fe_state)
             if self.config.support.enabled:
                 confidence = min(confidence, support)
             if confidence < finger_level and fingers:
@@ -375,7 +378,7 @@ class Tracker:
         :meth:`_support`); else None. The filter forgets the finger's velocity: the jump is a
         correction, not motion."""
         hyp = self.config.hypotheses
-        support, fingers, _ = measured
+        _, fingers, _, support = measured   # the fingers' own support: a speck of foreground is no finger's
         weak = min(fingers, key=fingers.get) if fingers else None
         if support >= hyp.verify_below or weak not in self._flexion:   # a thumb: no bends to try
             return None
