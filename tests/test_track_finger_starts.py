@@ -89,7 +89,9 @@ class _WeakIndex(FunctionFrontEnd):
     def support(self, images, q, state, margin_px=1):
         finger = finger_of_link(self.m)
         score = np.where(finger == 14, self.index_scores.pop(0), 1.0)
-        return ImageSupport(link_score=score[None])
+        return ImageSupport(link_score=score[None], unexplained_px=self.unexplained_px)
+
+    unexplained_px = 0.0
 
 
 @pytest.mark.slow
@@ -159,3 +161,20 @@ def test_the_rest_start_is_kept_but_not_valid_unless_the_frame_before_was_doubtf
     rows = extra_starts(m, hyp, q, None, None, None, None, 0, rest_keep=keep)[0]
     np.testing.assert_allclose(rows[0, keep], q[keep])
     np.testing.assert_allclose(rows[0, ~keep], np.asarray(m.q_default)[~keep])
+
+
+def test_an_unexplained_blob_alone_bends_no_finger():
+    """Foreground the pose leaves unexplained takes the confidence to 0 but names no finger: the
+    next frame starts from the prediction alone."""
+    m = jh.builtin_model("hand21")
+    truth = jh.random_q(m, np.random.default_rng(3), margin=0.25)
+    rig = (fit_camera(m, truth),)
+    config = TrackConfig(hypotheses=HypothesisConfig(finger_level=0.5, finger_deg=(20.0, 40.0, -20.0)),
+                         support=SupportConfig(enabled=True))
+    frontend = _WeakIndex(m, rig, truth, [0.97, 0.97])
+    frontend.unexplained_px = 100.0
+    tracker = Tracker(m, rig, frontend, config)
+    state, first = tracker.step(tracker.init(truth), [None], 0)
+    assert first.confidence == 0.0 and state.weak_finger == -1
+    state, second = tracker.step(state, [None], 1)
+    assert second.starts == 1

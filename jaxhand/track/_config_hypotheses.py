@@ -54,7 +54,8 @@ class HypothesisConfig:
         seed: host. Seed of the recovery starts (frame k's are drawn from ``(seed, k)``).
         coarse_steps: static. Where the merit alone chooses (no image score or support judge), every start
             runs this many iterations of the gated pass and the best one's start alone is solved (0: all are).
-        finger_level: host, in [0, 1]. After a frame whose confidence is below this, the next
+        finger_level: host, in [0, 1]. After a frame whose confidence (leaving out the
+            unexplained foreground, which names no finger) is below this, the next
             frame also starts from the prediction with the finger the image supports least (the
             support rule's per-finger score) bent by each of ``finger_deg`` (0: off), if it is a
             planar finger (not a thumb: :func:`~jaxhand.track._hypotheses.flexion_hinges`). A

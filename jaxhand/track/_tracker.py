@@ -335,11 +335,12 @@ class Tracker:
             filtered, ghk_next = np.asarray(state.q_last), held_filter(state.q_last)
         weak, finger_level, hidden = -1, self.config.hypotheses.finger_level, np.zeros(0, int)
         if (self.config.support.enabled or finger_level) and not lost:
-            support, fingers, hidden, _ = measured if measured is not None else self._support(images, filtered,
-                                                                                               fe_state)
+            support, fingers, hidden, finger_support = (measured if measured is not None
+                                                        else self._support(images, filtered, fe_state))
+            doubt = confidence   # the unexplained foreground names no finger to bend
             if self.config.support.enabled:
-                confidence = min(confidence, support)
-            if confidence < finger_level and fingers:
+                confidence, doubt = min(confidence, support), min(confidence, finger_support)
+            if doubt < finger_level and fingers:
                 weak = min(fingers, key=fingers.get)
         if np.isfinite(image_score) or extras is not None:
             timings["score"] = picked.score_s + (time.perf_counter() - t3)
