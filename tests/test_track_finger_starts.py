@@ -81,6 +81,8 @@ def test_extra_starts_add_the_finger_rows_only_when_asked():
 class _WeakIndex(FunctionFrontEnd):
     """Exact features of the truth; the index finger's links scored ``index_score`` on every frame."""
 
+    unexplained_px = 0.0
+
     def __init__(self, m, rig, truth, index_scores):
         feats = features_from_pose(m, rig, truth)
         super().__init__(lambda images, q, state, frame: feats, reextracts=False)
@@ -90,8 +92,6 @@ class _WeakIndex(FunctionFrontEnd):
         finger = finger_of_link(self.m)
         score = np.where(finger == 14, self.index_scores.pop(0), 1.0)
         return ImageSupport(link_score=score[None], unexplained_px=self.unexplained_px)
-
-    unexplained_px = 0.0
 
 
 @pytest.mark.slow

@@ -55,10 +55,15 @@ def fill_holes(mask: Bool[np.ndarray, "H W"], max_px: int) -> Bool[np.ndarray, "
     return mask | small[labels]
 
 
+def _outside(mask: np.ndarray, grow_px: int) -> np.ndarray:
+    """Where ``mask`` grown by ``grow_px`` leaves the image free."""
+    return ~(cv2.dilate(mask.astype(np.uint8), _disc(grow_px)) > 0)
+
+
 def _noise(stack: np.ndarray, hand: np.ndarray, min_noise: float) -> float:
     """The frames' noise level (grey levels): the robust spread of frame-to-frame differences
     away from the hand, over sqrt(2)."""
-    away = ~(cv2.dilate(hand.astype(np.uint8), _disc(3)) > 0)
+    away = _outside(hand, 3)
     if len(stack) < 2 or not away.any():
         return float(min_noise)
     d = np.abs(np.diff(stack[:, away], axis=0))
@@ -74,8 +79,8 @@ def _anchored_mode(stack: np.ndarray, core: np.ndarray, noise: float, min_frames
     counts up to twice as much the nearer it lies to the background outside, inpainted across
     the hand: of a fingertip that rested where the finger started and the background seen as
     often, the background wins."""
-    first = np.abs(stack - stack[0]) > _AGREE * noise
-    candidate = np.where(core, first, True if clear is None else ~(clear & first))
+    changed = np.abs(stack - stack[0]) > _AGREE * noise   # differs from the first frame
+    candidate = np.where(core, changed, True if clear is None else ~(clear & changed))
     width = max(4.0, noise)
     n_bins = int(256 / width) + 1
     bins = np.minimum((stack / width).astype(np.intp), n_bins - 1)
@@ -136,7 +141,7 @@ class SequenceBackground(AbstractForeground):
         self.noise = _noise(stack, hand, min_noise)
         self._core = cv2.erode(hand.astype(np.uint8), _disc(rim_px)) > 0 if rim_px > 0 else hand
         self._first = stack[0]
-        self._clear = ~(cv2.dilate(hand.astype(np.uint8), _disc(self.margin_px)) > 0) if anchor_clear else None
+        self._clear = _outside(hand, self.margin_px) if anchor_clear else None
         self.mode, self._mode_known = _anchored_mode(stack, self._core, self.noise, min_frames, self._clear)
         self._seen_sum = np.zeros(hand.shape, np.float64)
         self._seen = np.zeros(hand.shape, np.int32)
@@ -148,7 +153,7 @@ class SequenceBackground(AbstractForeground):
         sil = np.asarray(silhouette, bool)
         if sil.shape != grey.shape:
             raise InputError(f"silhouette: expected shape {grey.shape} (the frames'), got {sil.shape}")
-        free = ~(cv2.dilate(sil.astype(np.uint8), _disc(self.margin_px)) > 0)
+        free = _outside(sil, self.margin_px)
         if self._clear is not None:
             free &= ~self._clear | (np.abs(grey - self._first) <= _AGREE * self.noise)
         self._seen_sum += np.where(free, grey, 0.0)
