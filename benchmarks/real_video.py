@@ -17,10 +17,12 @@ fit shared by the runs). Runs, each from frame 0's landmark pose:
   ``--fuse-landmarks W``, for the first weight;
 - ``l``: ``r`` with the robust-limits preset instead of robust; ``lc<W>``: ``l``
   + ``--fuse-landmarks W``, for the first weight;
-- ``t``, ``tc<W>``: ``l``, ``lc<W>`` with the robust-temporal preset instead of robust-limits.
+- ``t``, ``tc<W>``: ``l``, ``lc<W>`` with the robust-temporal preset instead of robust-limits;
+- ``s``, ``sc<W>``: ``t``, ``tc<W>`` with the skin foreground fitted in the first frame
+  (``image.score.foreground = "skin"``; the video is read in colour).
 
-The runs with the learned foreground (``r``, ``l``, ``t`` and their fused runs) track the calibrated
-model with a palm and a forearm (:func:`jaxhand.model.add_palm`): the learned foreground sees them.
+The runs with the learned or the skin foreground (``r``, ``l``, ``t``, ``s`` and their fused runs) track
+the calibrated model with a palm and a forearm (:func:`jaxhand.model.add_palm`): the foreground sees them.
 
 ``--scale S`` tracks the video resized by S (runs named ``<run>@S``), the camera with it
 (:func:`jaxhand.camera.scale_camera`) and the landmark pixels the fused runs use; the agreement
@@ -89,6 +91,10 @@ def runs(weights) -> dict[str, TrackConfig]:
     out["t"] = dataclasses.replace(temporal, landmarks=LandmarkConfig())
     if weights:
         out[f"tc{weights[0]:g}"] = dataclasses.replace(temporal, landmarks=LandmarkConfig(fuse_weight=weights[0]))
+    skin = TrackConfig().preset("robust-temporal").merged({"image": {"score": {"foreground": "skin"}}})
+    out["s"] = dataclasses.replace(skin, landmarks=LandmarkConfig())
+    if weights:
+        out[f"sc{weights[0]:g}"] = dataclasses.replace(skin, landmarks=LandmarkConfig(fuse_weight=weights[0]))
     return out
 
 
@@ -97,7 +103,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=621, help="frames of the video to track (default: all 621)")
     ap.add_argument("--weights", default="1,10", help="--fuse-landmarks weights of the c runs")
     ap.add_argument("--runs", default=None,
-                    help="comma-separated subset of a,b,b15,c<W>,c<W>nf,r,rc<W>,l,lc<W>,t,tc<W>")
+                    help="comma-separated subset of a,b,b15,c<W>,c<W>nf,r,rc<W>,l,lc<W>,t,tc<W>,s,sc<W>")
     ap.add_argument("--out", default="/tmp/jaxhand_real_video", help="folder for the runs' outputs")
     ap.add_argument("--forearm-mm", type=float, default=40.0,
                     help="forearm length of the learned-foreground runs' palm model (default 40: the wrist bends)")
@@ -129,8 +135,9 @@ def main() -> None:
     poses_s = dataclasses.replace(poses, px=scaled_pixels(poses.px, camera.size, cam_s.size))
     for name, config in todo.items():
         lm = config.landmarks
-        palm = config.image.score.foreground == "sequence"
-        sources = open_frames([VIDEO], fps=30.0, sizes=[cam_s.size], scale=args.scale)
+        palm = config.image.score.foreground in ("sequence", "skin")
+        sources = open_frames([VIDEO], fps=30.0, sizes=[cam_s.size], scale=args.scale,
+                              colour=config.image.score.reads_colour)
         s = track_sequence(palm_model if palm else model, (cam_s,), sources, None, Path(args.out) / name, config=config,
                            landmarks=poses_s, max_frames=args.frames, overwrite=True)
         done = np.load(Path(args.out) / name / "results.npz")

@@ -69,7 +69,8 @@ def register(sub) -> None:
     p.add_argument("--foreground", choices=FOREGROUNDS,
                    help="which pixels show the hand, for the silhouette term and the image score: 'sequence' "
                         "learns a still camera's background from the sequence and the tracked poses (cluttered "
-                        "backgrounds), 'threshold' a dark background, 'skin' colour video, 'background' needs "
+                        "backgrounds), 'threshold' a dark background, 'skin' colour video (the hand's colour fitted "
+                        "in the first frame at the first pose), 'background' needs "
                         "[image.score] background_image in --config (default: the settings', "
                         f"{defaults.image.score.foreground}; 'auto' where a preset's silhouette term needs one)")
     p.add_argument("--fps", type=float, default=25.0, help="frame rate of image folders")
@@ -115,7 +116,7 @@ def _is_synth(folder: Path) -> bool:
                                 or (folder / "ground_truth.partial.jsonl").exists())
 
 
-def _resolve(args):
+def _resolve(args, colour: bool = False):
     from .camera import load_camera, scale_camera
     from .io import load_devset, open_frames
     from .model import get_model
@@ -151,7 +152,7 @@ def _resolve(args):
     native = cameras[0].size
     if args.scale != 1.0:
         cameras = tuple(scale_camera(c, args.scale) for c in cameras)
-    sources = open_frames(inputs, fps=fps, sizes=[c.size for c in cameras], scale=args.scale)
+    sources = open_frames(inputs, fps=fps, sizes=[c.size for c in cameras], scale=args.scale, colour=colour)
     truth = None
     if args.truth:
         truth = load_truth_arg(args.truth, model)
@@ -268,7 +269,7 @@ def _track(args) -> int:
     if (args.fuse_landmarks is not None or args.no_restart or args.restart_px is not None) and not args.landmarks:
         raise InputError("--fuse-landmarks, --no-restart and --restart-px act on landmarks: give --landmarks FILE")
     out = out_dir(args.out)
-    model, cameras, sources, truth, q_first, native = _resolve(args)
+    model, cameras, sources, truth, q_first, native = _resolve(args, colour=config.image.score.reads_colour)
     landmarks = None
     if args.landmarks:
         from .landmarks import load_landmarks

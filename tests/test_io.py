@@ -125,3 +125,20 @@ def test_frames_resized_by_a_scale(tmp_path):
     np.testing.assert_array_equal(frame.image, cv2.resize(image, (32, 24), interpolation=cv2.INTER_AREA))
     with pytest.raises(jh.InputError, match=r"scale: expected a factor in \(0, 1\]"):
         FrameSource(d, scale=2.0)
+
+
+def test_colour_frames_stay_colour_only_when_asked(tmp_path):
+    d, g = tmp_path / "colour", tmp_path / "grey"
+    d.mkdir()
+    g.mkdir()
+    bgr = np.random.default_rng(1).integers(0, 255, (12, 16, 3), np.uint8)
+    cv2.imwrite(str(d / "frame_0.png"), bgr)
+    cv2.imwrite(str(d / "frame_1.png"), np.dstack([bgr, np.full((12, 16), 255, np.uint8)]))   # BGRA
+    cv2.imwrite(str(g / "frame_0.png"), bgr[..., 1])
+    first, with_alpha = (f.image for f in open_frames([d], colour=True)[0])
+    np.testing.assert_array_equal(first, bgr)
+    np.testing.assert_array_equal(with_alpha, bgr)
+    (grey,) = (f.image for f in open_frames([d])[0] if f.index == 0)
+    np.testing.assert_array_equal(grey, cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
+    (still_grey,) = (f.image for f in open_frames([g], colour=True)[0])
+    np.testing.assert_array_equal(still_grey, bgr[..., 1])

@@ -22,6 +22,7 @@ from jaxhand.score import (
     foreground_for,
     rasterize,
     sequence_foreground,
+    skin_foreground,
 )
 from jaxhand.track import ImageFrontEnd, image_front_end
 
@@ -92,6 +93,64 @@ def test_skin_model_fitted_and_default():
     assert np.count_nonzero(SkinForeground().mask(bgr) != hand) <= 6
     with pytest.raises(ValueError, match="BGR"):
         SkinForeground().mask(bgr[..., 0])
+
+
+def _skin_scene(q_hand, seed=3, paint_hand=True):
+    """A colour frame of the dev set's model at ``q_hand`` painted a light skin tone (unless not
+    ``paint_hand``) over a grey background with a band of 'wood' whose colour the generic skin
+    model also takes, the model, its camera and the hand's and the wood's masks."""
+    seq = load_devset(DEVSET / "open_close")
+    m, cam = seq.model, seq.truth.cameras[0]
+    hand = rasterize(capsules_from_model(m, np.asarray(q_hand)), cam).mask
+    rng = np.random.default_rng(seed)
+    bgr = np.empty(hand.shape + (3,), float)
+    bgr[:] = (128, 128, 128)
+    wood = np.zeros(hand.shape, bool)
+    wood[:, :150] = True   # beside and behind the hand
+    bgr[wood] = (40, 90, 160)
+    bgr[hand & paint_hand] = (120, 150, 210)
+    bgr = np.clip(bgr + rng.normal(0, 3, bgr.shape), 0, 255).astype(np.uint8)
+    return bgr, m, cam, seq.truth.q[0], hand, wood & ~hand
+
+
+def test_skin_foreground_fits_the_hands_own_colour_at_the_first_pose():
+    """The generic skin model takes the wood too; the model fitted inside the first pose's
+    silhouette takes the hand alone. Off the hand, or without ``skin_fit``, it stays generic."""
+    seq = load_devset(DEVSET / "open_close")
+    bgr, m, cam, q0, hand, wood = _skin_scene(seq.truth.q[0])
+    generic = SkinForeground().mask(bgr)
+    assert generic[wood].mean() > 0.95
+    fitted = skin_foreground(m, cam, q0, bgr, ScoreSection(foreground="skin"))
+    mask = fitted.mask(bgr)
+    assert (mask & hand).sum() / (mask | hand).sum() > 0.97
+    assert mask[wood].mean() < 0.01
+    assert fitted.mean != SkinForeground().mean and fitted.fill_px == 100
+    empty = _skin_scene(q0, paint_hand=False)[0]   # the first pose's silhouette on no skin
+    assert skin_foreground(m, cam, q0, empty, ScoreSection(foreground="skin")).mean == SkinForeground().mean
+    plain = skin_foreground(m, cam, q0, bgr, ScoreSection(foreground="skin", skin_fit=False))
+    assert plain.mean == SkinForeground().mean and plain.max_distance == 2.5
+
+
+def test_the_front_end_scores_with_the_fitted_skin():
+    """The front end's image score of the true pose on the colour frame: near 1 with the fitted
+    skin, lower with the generic one, which takes the wood beside the hand as foreground."""
+    seq = load_devset(DEVSET / "open_close")
+    q0 = np.asarray(seq.truth.q[0])
+    bgr, m, cam, _, hand, wood = _skin_scene(q0)
+    scores = {}
+    for fit in (True, False):
+        fe = ImageFrontEnd(m, cam, ImageConfig(score=ScoreSection(foreground="skin", skin_fit=fit)))
+        state = fe.extract([bgr], q0, None, 0).state
+        scores[fit] = float(fe.score([bgr], q0[None], state)[0])
+    assert scores[True] > 0.9 and scores[False] < scores[True] - 0.05   # 0.92 and 0.85
+
+
+def test_skin_needs_colour_frames():
+    with pytest.raises(ValueError, match="'skin' reads colour, but the frames are grey"):
+        foreground_for(ScoreSection(foreground="skin"), np.zeros((4, 4), np.uint8))
+    with pytest.raises(ValueError, match="score.skin_fit_distance: need > 0, got 0"):
+        ScoreSection(foreground="skin", skin_fit_distance=0)
+    assert ScoreSection(foreground="skin").reads_colour and not ScoreSection(foreground="sequence").reads_colour
 
 
 def test_bad_inputs():

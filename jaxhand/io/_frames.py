@@ -25,7 +25,8 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".pp
 
 @dataclasses.dataclass(frozen=True)
 class Frame:
-    """One frame: its index, time (s), the grey uint8 image (None if unreadable) and why not."""
+    """One frame: its index, time (s), the uint8 image (grey, or BGR from a source opened with
+    ``colour``; None if unreadable) and why not."""
 
     index: int
     time_s: float
@@ -39,18 +40,22 @@ def natural_key(name: str) -> tuple:
                  for part in re.split(r"(\d+)", name) if part)
 
 
-def _grey(image: np.ndarray) -> np.ndarray:
+def _uint8(image: np.ndarray, colour: bool) -> np.ndarray:
+    """A decoded frame as uint8: grey, or BGR where ``colour`` and the frame has colour channels."""
     if image.ndim == 3:
-        code = cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY
-        image = cv2.cvtColor(image, code)
+        if colour and image.shape[2] in (3, 4):
+            image = image[..., :3] if image.shape[2] == 4 else image
+        else:
+            code = cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY
+            image = cv2.cvtColor(image, code)
     if image.dtype != np.uint8:
         image = cv2.normalize(image, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
-    return image
+    return np.ascontiguousarray(image)
 
 
 class FrameSource:
     """Frames of a video file or an image folder (in natural order of the file names, so
-    ``frame_2`` comes before ``frame_10``), as grey uint8 images.
+    ``frame_2`` comes before ``frame_10``), as grey uint8 images, or BGR ones with ``colour``.
 
     Args:
         path: a video file (anything OpenCV's FFmpeg backend reads) or a folder of images.
@@ -60,6 +65,8 @@ class FrameSource:
             one is yielded as unreadable, with a message naming the file and both sizes.
         scale: every frame is resized by this factor (area averaging) before that check, for
             tracking at a lower resolution (with :func:`jaxhand.camera.scale_camera` of the camera).
+        colour: keep colour frames in colour (BGR, as OpenCV decodes them), for a foreground
+            model that reads colour (skin); grey frames stay grey.
 
     Raises:
         InputError: the path does not exist, the folder holds no images, the video has no
@@ -67,8 +74,9 @@ class FrameSource:
     """
 
     def __init__(self, path: str | Path, fps: float = 25.0, size: tuple[int, int] | None = None,
-                 scale: float = 1.0):
+                 scale: float = 1.0, colour: bool = False):
         self.path = Path(path)
+        self.colour = bool(colour)
         if not fps > 0:
             raise InputError(f"fps must be > 0, got {fps}")
         if not (np.isfinite(scale) and 0 < scale <= 1):
@@ -125,7 +133,7 @@ class FrameSource:
             image = cv2.resize(image, scaled_size((w, h), self.scale), interpolation=cv2.INTER_AREA)
         h, w = image.shape[:2]
         if self.size is None or (w, h) == self.size:
-            return Frame(i, i / self.fps, _grey(image))
+            return Frame(i, i / self.fps, _uint8(image, self.colour))
         msg = (f"{name}: frame {i} is {w}x{h} px but the camera's image size is {self.size[0]}x{self.size[1]} "
                f"(width x height)")
         if i == 0:
@@ -154,17 +162,18 @@ class FrameSource:
             cap.release()
 
 
-def open_frames(paths, fps: float = 25.0, sizes=None, scale: float = 1.0) -> list[FrameSource]:
+def open_frames(paths, fps: float = 25.0, sizes=None, scale: float = 1.0, colour: bool = False) -> list[FrameSource]:
     """One :class:`FrameSource` per camera; all must have the same number of frames.
 
     ``sizes``: one (width, height) per path that its frames must have (the cameras', after
-    ``scale``), or None. ``scale``: resize every frame by this factor (see :class:`FrameSource`).
+    ``scale``), or None. ``scale``: resize every frame by this factor; ``colour``: keep colour
+    frames in colour (see :class:`FrameSource`).
     """
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
     sizes = [None] * len(paths) if sizes is None else list(sizes)
     if len(sizes) != len(paths):
         raise InputError(f"{len(paths)} input(s) but {len(sizes)} image size(s): give one per camera")
-    sources = [FrameSource(p, fps, size, scale) for p, size in zip(paths, sizes)]
+    sources = [FrameSource(p, fps, size, scale, colour) for p, size in zip(paths, sizes)]
     if not sources:
         raise InputError("no input given: pass a video file or an image folder per camera")
     counts = {len(s) for s in sources}

@@ -32,6 +32,7 @@ from ._foreground import BackgroundForeground as BackgroundForeground
 from ._foreground import SkinForeground as SkinForeground
 from ._foreground import ThresholdForeground as ThresholdForeground
 from ._foreground import as_grey as as_grey
+from ._foreground import fill_holes as fill_holes
 from ._score import ImageEvidence as ImageEvidence
 from ._score import ImageScore as ImageScore
 from ._score import ScoreConfig as ScoreConfig
@@ -43,9 +44,10 @@ from ._score import score_silhouette as score_silhouette
 from ._section import FOREGROUNDS as FOREGROUNDS
 from ._section import ScoreSection as ScoreSection
 from ._section import foreground_for as foreground_for
+from ._section import foreground_kind as foreground_kind
 from ._section import sequence_foreground as sequence_foreground
+from ._section import skin_foreground as skin_foreground
 from ._sequence import SequenceBackground as SequenceBackground
-from ._sequence import fill_holes as fill_holes
 from ._sides import link_sides as link_sides
 from ._sides import side_edge_share as side_edge_share
 from ._silhouette import CameraNumbers as CameraNumbers
@@ -68,6 +70,7 @@ __all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsule
            "rasterize", "AbstractForeground", "ThresholdForeground", "BackgroundForeground", "SkinForeground",
            "as_grey", "ScoreConfig", "ImageEvidence", "ImageScore", "image_evidence", "model_contour",
            "score_silhouette", "score_frame", "score_poses", "ConfidenceConfig", "frame_confidence", "FOREGROUNDS",
-           "ScoreSection", "foreground_for", "sequence_foreground", "SequenceBackground", "fill_holes",
+           "ScoreSection", "foreground_for", "foreground_kind", "sequence_foreground", "skin_foreground",
+           "SequenceBackground", "fill_holes",
            "SilhouetteTermConfig", "SilhouetteTerm",
            "SilhouettePrior", "silhouette_term", "pill_images", "roi_box", "link_sides", "side_edge_share"]

@@ -28,6 +28,7 @@ from jaxtyping import Bool, Float, UInt8
 from .._errors import InputError
 
 __all__ = ["THRESHOLD_METHODS", "AbstractForeground", "ThresholdForeground", "BackgroundForeground", "SkinForeground",
+           "fill_holes",
            "as_grey"]
 
 
@@ -68,6 +69,20 @@ class AbstractForeground(abc.ABC):
         Raises:
             InputError: a malformed frame (shape, dtype, size).
         """
+
+
+def fill_holes(mask: Bool[np.ndarray, "H W"], max_px: int) -> Bool[np.ndarray, "H W"]:
+    """``mask`` with every 4-connected hole of fewer than ``max_px`` pixels filled (a background
+    region touching the image border is never a hole)."""
+    if max_px <= 0:
+        return mask
+    n, labels, stats, _ = cv2.connectedComponentsWithStats((~mask).astype(np.uint8), connectivity=4)
+    h, w = mask.shape
+    x, y, bw, bh, area = (stats[:, i] for i in range(5))
+    inner = (x > 0) & (y > 0) & (x + bw < w) & (y + bh < h)
+    small = inner & (area < max_px)
+    small[0] = False   # label 0 is the mask itself
+    return mask | small[labels]
 
 
 THRESHOLD_METHODS = ("fixed", "triangle", "otsu")
@@ -183,6 +198,7 @@ class SkinForeground(AbstractForeground):
         max_distance: pixels within this Mahalanobis distance of the mean are skin.
         min_luma: darker pixels (Y below this) are never skin: chrominance is noise there.
         open_px: radius of the opening (px).
+        fill_px: holes of fewer pixels are filled (:func:`fill_holes`; 0: none).
     """
 
     mean: tuple[float, float] = _SKIN_MEAN
@@ -190,6 +206,7 @@ class SkinForeground(AbstractForeground):
     max_distance: float = 2.5
     min_luma: float = 30.0
     open_px: int = 1
+    fill_px: int = 0
 
     def __post_init__(self):
         c = np.asarray(self.cov, float)
@@ -197,7 +214,8 @@ class SkinForeground(AbstractForeground):
             raise InputError(f"SkinForeground.cov: need a symmetric positive definite 2x2 matrix, got {self.cov!r}")
 
     @staticmethod
-    def fit(image, mask, *, max_distance: float = 3.0, min_luma: float = 30.0, open_px: int = 1) -> SkinForeground:
+    def fit(image, mask, *, max_distance: float = 3.0, min_luma: float = 30.0, open_px: int = 1,
+            fill_px: int = 0) -> SkinForeground:
         """Fit the Gaussian to the pixels of a BGR ``image`` where ``mask`` (H, W) is True.
 
         Raises:
@@ -214,7 +232,7 @@ class SkinForeground(AbstractForeground):
         mean = crcb.mean(0)
         return SkinForeground(mean=(float(mean[0]), float(mean[1])),
                               cov=((float(cov[0, 0]), float(cov[0, 1])), (float(cov[1, 0]), float(cov[1, 1]))),
-                              max_distance=max_distance, min_luma=min_luma, open_px=open_px)
+                              max_distance=max_distance, min_luma=min_luma, open_px=open_px, fill_px=fill_px)
 
     def mask(self, image) -> np.ndarray:
         a = np.asarray(image)
@@ -224,4 +242,5 @@ class SkinForeground(AbstractForeground):
         d = ycc[..., 1:] - np.asarray(self.mean, np.float32)
         icov = np.linalg.inv(np.asarray(self.cov, float)).astype(np.float32)
         m2 = icov[0, 0] * d[..., 0] ** 2 + 2 * icov[0, 1] * d[..., 0] * d[..., 1] + icov[1, 1] * d[..., 1] ** 2
-        return _open((m2 <= self.max_distance**2) & (ycc[..., 0] >= self.min_luma), self.open_px)
+        return fill_holes(_open((m2 <= self.max_distance**2) & (ycc[..., 0] >= self.min_luma), self.open_px),
+                          self.fill_px)

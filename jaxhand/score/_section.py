@@ -20,7 +20,8 @@ from ._score import ScoreConfig
 from ._sequence import SequenceBackground
 from ._silhouette import capsules_from_model, rasterize
 
-__all__ = ["FOREGROUNDS", "ScoreSection", "foreground_for", "sequence_foreground"]
+__all__ = ["FOREGROUNDS", "ScoreSection", "foreground_for", "foreground_kind", "sequence_foreground",
+           "skin_foreground"]
 
 #: The foreground choices of :attr:`ScoreSection.foreground`.
 FOREGROUNDS = ("auto", "threshold", "background", "sequence", "skin", "none")
@@ -54,6 +55,11 @@ class ScoreSection:
         sequence_frames: how many frames, spread evenly over the sequence, "sequence" learns from.
         skin_max_distance: Mahalanobis distance of the generic skin model's chrominance (see
             :class:`SkinForeground`).
+        skin_fit: "skin" (and "auto" on colour frames) fits the skin model to the hand's own
+            colour in the first frame, inside the model's silhouette at the first pose
+            (:func:`skin_foreground`), rather than the generic model: a generic skin colour also
+            takes wood, walls and clothes under warm light.
+        skin_fit_distance: the Mahalanobis distance of the fitted model.
         silhouette: how a silhouette is compared with the frame (:class:`ScoreConfig`).
     """
 
@@ -64,6 +70,8 @@ class ScoreSection:
     background_difference: float = 12.0
     sequence_frames: int = 60
     skin_max_distance: float = 2.5
+    skin_fit: bool = True
+    skin_fit_distance: float = 3.5
     silhouette: ScoreConfig = ScoreConfig()
 
     def __post_init__(self):
@@ -77,8 +85,11 @@ class ScoreSection:
                              "empty scene")
         if not (isinstance(self.sequence_frames, int) and self.sequence_frames >= 3):
             raise InputError(f"score.sequence_frames: need an integer >= 3, got {self.sequence_frames!r}")
-        if not self.skin_max_distance > 0:
-            raise InputError(f"score.skin_max_distance: need > 0, got {self.skin_max_distance!r}")
+        for name in ("skin_max_distance", "skin_fit_distance"):
+            if not getattr(self, name) > 0:
+                raise InputError(f"score.{name}: need > 0, got {getattr(self, name)!r}")
+        if not isinstance(self.skin_fit, bool):
+            raise InputError(f"score.skin_fit: expected true or false, got {self.skin_fit!r}")
         if not isinstance(self.silhouette, ScoreConfig):
             raise InputError(f"score.silhouette: expected a ScoreConfig, got {type(self.silhouette).__name__}")
 
@@ -87,11 +98,26 @@ class ScoreSection:
         """Whether poses are scored at all."""
         return self.foreground != "none"
 
+    @property
+    def reads_colour(self) -> bool:
+        """Whether the foreground may read colour (skin, also as "auto" and where "none" leaves
+        the silhouette term or the support "auto"): frame sources should then keep colour
+        (:func:`jaxhand.io.open_frames`)."""
+        return self.foreground in ("auto", "skin", "none")
+
 
 def _is_colour(image: np.ndarray) -> bool:
     a = np.asarray(image)
     return a.ndim == 3 and a.shape[2] == 3 and not (np.array_equal(a[..., 0], a[..., 1])
                                                     and np.array_equal(a[..., 1], a[..., 2]))
+
+
+def foreground_kind(section: ScoreSection, image) -> str:
+    """The foreground ``section`` takes for ``image``: its own, or for "auto" "skin" on colour
+    frames and "threshold" on grey ones."""
+    if section.foreground == "auto":
+        return "skin" if _is_colour(image) else "threshold"
+    return section.foreground
 
 
 def foreground_for(section: ScoreSection, image) -> AbstractForeground:
@@ -100,12 +126,13 @@ def foreground_for(section: ScoreSection, image) -> AbstractForeground:
     Raises:
         InputError: foreground "none", or a background image that cannot be read.
     """
-    kind = section.foreground
-    if kind == "auto":
-        kind = "skin" if _is_colour(image) else "threshold"
+    kind = foreground_kind(section, image)
     if kind == "threshold":
         return ThresholdForeground(method=section.threshold_method, threshold=section.threshold)
     if kind == "skin":
+        if not _is_colour(image):
+            raise InputError("score.foreground 'skin' reads colour, but the frames are grey: give colour frames "
+                             "(jaxhand.io.open_frames(..., colour=True)) or choose 'sequence' or 'threshold'")
         return SkinForeground(max_distance=section.skin_max_distance)
     if kind == "background":
         bg = cv2.imread(section.background_image, cv2.IMREAD_UNCHANGED)
@@ -123,3 +150,20 @@ def sequence_foreground(model, camera, q0, frames) -> SequenceBackground:
     seeded by the model's silhouette (pills and occluders) at the first frame's pose ``q0``."""
     mask = rasterize(capsules_from_model(model, np.asarray(q0, float)), camera).mask
     return SequenceBackground(frames, mask)
+
+
+def skin_foreground(model, camera, q0, image, section: ScoreSection) -> AbstractForeground:
+    """The "skin" foreground of one camera for a sequence whose first frame is ``image``: with
+    ``section.skin_fit``, a :class:`SkinForeground` fitted to the pixels of ``image`` the generic
+    model calls skin inside the model's silhouette at the first pose ``q0`` (shrunk by 2 px, off
+    the outline), holes under 100 px filled; the generic model where half of that
+    silhouette is not skin (the first pose is not on the hand) or without ``skin_fit``."""
+    generic = foreground_for(dataclasses.replace(section, foreground="skin"), image)
+    if not section.skin_fit:
+        return generic
+    mask = rasterize(capsules_from_model(model, np.asarray(q0, float)), camera).mask
+    inside = cv2.erode(mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    skin = inside & generic.mask(image)
+    if skin.sum() < max(10, 0.5 * inside.sum()):
+        return generic
+    return SkinForeground.fit(image, skin, max_distance=section.skin_fit_distance, fill_px=100)

@@ -33,26 +33,12 @@ import numpy as np
 from jaxtyping import Bool, Float
 
 from .._errors import InputError
-from ._foreground import AbstractForeground, _disc, _open, as_grey
+from ._foreground import AbstractForeground, _disc, _open, as_grey, fill_holes
 
-__all__ = ["SequenceBackground", "fill_holes"]
+__all__ = ["SequenceBackground"]
 
 _AGREE = 3.0   # noise levels within which two greys count as the same (anchoring, covered modes)
 _GUESS_GREY = 32.0   # how near (grey levels) a mode must lie to the inpainted background to count double
-
-
-def fill_holes(mask: Bool[np.ndarray, "H W"], max_px: int) -> Bool[np.ndarray, "H W"]:
-    """``mask`` with every 4-connected hole of fewer than ``max_px`` pixels filled (a background
-    region touching the image border is never a hole)."""
-    if max_px <= 0:
-        return mask
-    n, labels, stats, _ = cv2.connectedComponentsWithStats((~mask).astype(np.uint8), connectivity=4)
-    h, w = mask.shape
-    x, y, bw, bh, area = (stats[:, i] for i in range(5))
-    inner = (x > 0) & (y > 0) & (x + bw < w) & (y + bh < h)
-    small = inner & (area < max_px)
-    small[0] = False   # label 0 is the mask itself
-    return mask | small[labels]
 
 
 def _outside(mask: np.ndarray, grow_px: int) -> np.ndarray:

@@ -25,6 +25,7 @@ from ..score import (
     camera_numbers,
     capsules_from_model_batch,
     foreground_for,
+    foreground_kind,
     image_evidence,
     rasterize,
     roi_box,
@@ -32,6 +33,7 @@ from ..score import (
     sequence_foreground,
     side_edge_share,
     silhouette_term,
+    skin_foreground,
 )
 from ._support import ImageSupport, largest_unexplained_px
 
@@ -140,6 +142,7 @@ class ImageFrontEnd(AbstractFrontEnd):
                              f"got {len(background_frames)}")
         self.background_frames = background_frames
         self._sequence_fg: tuple | None = None   # the "sequence" foregrounds, built at the first frame's pose
+        self._skin_fg: tuple | None = None   # the "skin" foregrounds, fitted at the first frame's pose
         self._cams = tuple(camera_numbers(c) for c in self.cameras) if self.config.score.enabled else ()
         self._evidence: tuple[tuple[bytes, ...], tuple] | None = None   # the last frame's, by content
         self._terms: tuple[int, tuple] | None = None   # the last frame's silhouette terms, by frame number
@@ -152,6 +155,11 @@ class ImageFrontEnd(AbstractFrontEnd):
         if self.background_frames is not None and self._sequence_fg is None:
             self._sequence_fg = tuple(sequence_foreground(self.model, cam, q, frames)
                                       for cam, frames in zip(self.cameras, self.background_frames))
+        if self._skin_fg is None:
+            section = self._section()
+            self._skin_fg = tuple(skin_foreground(self.model, cam, q, im, section)
+                                  if im is not None and foreground_kind(section, im) == "skin" else None
+                                  for cam, im in zip(self._cameras(), images))
         features, diag = extract_features(images, self.model, self.cameras, q, self.config, state)
         timings = dict(diag.timings_s) if diag.timings_s else {}
         return FrontEndResult(tuple(features), diag.state,
@@ -250,9 +258,12 @@ class ImageFrontEnd(AbstractFrontEnd):
         return self._evidence[1]
 
     def _foreground(self, section, c: int, image):
-        """Camera ``c``'s foreground model for ``image``: the learned one for "sequence"."""
+        """Camera ``c``'s foreground model for ``image``: the learned one for "sequence", the one
+        fitted at the first frame for "skin"."""
         if section.foreground == "sequence" and self._sequence_fg is not None:
             return self._sequence_fg[c]
+        if self._skin_fg is not None and self._skin_fg[c] is not None and section.foreground in ("skin", "auto"):
+            return self._skin_fg[c]
         return foreground_for(section, image)
 
 
