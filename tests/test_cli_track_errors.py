@@ -128,6 +128,24 @@ def test_perspective_camera_behind_or_around_the_hand(index_input, tmp_path, cap
     assert "lies around the camera" in _one_line_error(capsys)
 
 
+def test_skin_foreground_reads_colour_frames(index_input, tmp_path, capsys):
+    """'skin' on grey frames is one line naming the way out; on the same frames tinted a skin
+    colour the CLI opens them in colour and tracks."""
+    out = str(tmp_path / "o")
+    assert main(_track(index_input, "--model", "index", "--out", out, "--foreground", "skin")) == 2
+    assert "'skin' reads colour, but the frames are grey" in _one_line_error(capsys)
+    assert not any((tmp_path / "o").glob("*"))   # failed before any output
+    tinted = tmp_path / "tinted"
+    tinted.mkdir()
+    for f in sorted((index_input / "frames").iterdir()):
+        grey = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE).astype(float)[..., None] / 255.0
+        cv2.imwrite(str(tinted / f.name), np.rint(grey * np.array([120.0, 150.0, 210.0])).astype(np.uint8))
+    args = ["track", str(tinted), "--camera", str(index_input / "cam.json"), "--model", "index", "--out", out,
+            "--foreground", "skin", "--max-frames", "2", "--no-video"]
+    assert main(args) == 0
+    assert json.loads((tmp_path / "o" / "summary.json").read_text())["frames"] == 2
+
+
 def test_flags_are_named_in_config_errors(index_input, tmp_path, capsys):
     out = str(tmp_path / "o")
     for flags, want in ((["--steps", "0"], "--steps: expected an integer >= 1, got 0"),

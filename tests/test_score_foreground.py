@@ -150,7 +150,8 @@ def test_skin_needs_colour_frames():
         foreground_for(ScoreSection(foreground="skin"), np.zeros((4, 4), np.uint8))
     with pytest.raises(ValueError, match="score.skin_fit_distance: need > 0, got 0"):
         ScoreSection(foreground="skin", skin_fit_distance=0)
-    assert ScoreSection(foreground="skin").reads_colour and not ScoreSection(foreground="sequence").reads_colour
+    assert ScoreSection(foreground="skin").reads_colour
+    assert not any(ScoreSection(foreground=f).reads_colour for f in ("auto", "none", "sequence", "threshold"))
 
 
 def test_bad_inputs():

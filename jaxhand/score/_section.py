@@ -100,10 +100,10 @@ class ScoreSection:
 
     @property
     def reads_colour(self) -> bool:
-        """Whether the foreground may read colour (skin, also as "auto" and where "none" leaves
-        the silhouette term or the support "auto"): frame sources should then keep colour
-        (:func:`jaxhand.io.open_frames`)."""
-        return self.foreground in ("auto", "skin", "none")
+        """Whether the foreground reads colour ("skin"): frame sources should then keep colour
+        (:func:`jaxhand.io.open_frames`). "auto" keeps to grey frames, and so to the threshold,
+        unless the caller opens colour frames itself."""
+        return self.foreground == "skin"
 
 
 def _is_colour(image: np.ndarray) -> bool:

@@ -32,6 +32,7 @@ from ..image import ImageState
 from ..io import FrameSource, ResultWriter, pose_to_dict
 from ..kinematics import forward, project_pose
 from ..model import Model
+from ..score import foreground_for
 from ..viz import VideoWriter, draw_view, plot_joint_angles
 from ._config import TrackConfig, config_to_dict
 from ._frontend import AbstractFrontEnd, ImageFrontEnd, image_front_end
@@ -207,6 +208,8 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
         _check_view(model, cameras, state.q_last)
         if isinstance(frontend, ImageFrontEnd):
             _check_fit(model, cameras, sources, state.q_last)
+    if isinstance(frontend, ImageFrontEnd) and frontend.config.score.reads_colour:
+        _check_colour(frontend.config.score, sources)
     with ResultWriter(out, model, overwrite=overwrite, resume=resume) as writer:
         resumed = None
         if resume:
@@ -294,6 +297,14 @@ def _check_fit(model: Model, cameras, sources, q) -> None:
                 "order of the cameras?") if better else ": check the camera file, the input and the initial pose"
         warnings.warn(f"camera {k}: only {own:.0%} of the model's projected link axes at the initial pose lie on "
                       f"the bright foreground of input {k}'s first frame{hint}", JaxhandWarning, stacklevel=3)
+
+
+def _check_colour(section, sources) -> None:
+    """A foreground that reads colour fails on grey first frames before any output is written
+    (:func:`jaxhand.score.foreground_for` names the problem)."""
+    for image in _first_images(sources) or ():
+        if image is not None:
+            foreground_for(section, image)
 
 
 def _check_truth(model: Model, truth, n: int) -> np.ndarray:
