@@ -23,6 +23,8 @@ seeds: two settings whose ranges overlap have not been told apart. Prints a tabl
         --overlays /tmp/oc   # each frame's error, confidence and winning start; frames over 8 px drawn
     .venv/bin/python benchmarks/devset.py --only open_close --degrade 0.6,5 --no-exact   # the cluttered copy's
                                                                    # blur and noise without its clutter
+    .venv/bin/python benchmarks/devset.py --only open_close_noise_clutter --true-foreground --no-exact
+                                                # with a perfect segmentation: what the foreground costs
 """
 
 from __future__ import annotations
@@ -45,9 +47,11 @@ from _common import REPO, RESULTS, add_runtime_option, apply_runtime, environmen
 from jaxhand.io import load_devset, open_frames  # noqa: E402
 from jaxhand.kinematics import project_pose  # noqa: E402
 from jaxhand.render import degrade  # noqa: E402
+from jaxhand.score import AbstractForeground  # noqa: E402
 from jaxhand.track import (  # noqa: E402
     PRESETS,
     ExactFrontEnd,
+    ImageFrontEnd,
     Review,
     TrackConfig,
     Tracker,
@@ -175,6 +179,35 @@ def write_overlay(path: Path, seq, image, k: int, q) -> None:
     cv2.imwrite(str(path), cv2.resize(np.concatenate(panels, 1), None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST))
 
 
+#: The clean sequence each copy shows (the same hand over black): its frames over TRUE_FG_GREY are
+#: the copy's true foreground (``--true-foreground``).
+CLEAN_TWIN = {"open_close_noise_clutter": "open_close"}
+TRUE_FG_GREY = 20
+
+
+class TrueForeground(AbstractForeground):
+    """The true foreground of a tracked copy, looked up by the frame's content (a review tracks
+    frames again out of order): the clean twin's frame over :data:`TRUE_FG_GREY`."""
+
+    def __init__(self, frames, clean_frames):
+        self._masks = {np.ascontiguousarray(f).tobytes(): np.asarray(c) > TRUE_FG_GREY
+                       for f, c in zip(frames, clean_frames)}
+
+    def mask(self, image) -> np.ndarray:
+        return self._masks[np.ascontiguousarray(image).tobytes()]
+
+
+def true_foregrounds(seq, folders: list[Path], n: int) -> list[TrueForeground]:
+    """Per camera, the :class:`TrueForeground` of the first ``n`` frames read from ``folders``."""
+    clean = load_devset(REPO / "data" / "mujoco" / CLEAN_TWIN.get(seq.folder.name, seq.folder.name))
+    clean_folders = [clean.folder / Path(f[0]).parent for f in clean.truth.image_files]
+    out = []
+    for source, clean_source in zip(open_frames(folders), open_frames(clean_folders)):
+        pairs = list(zip(source, clean_source))[:n]
+        out.append(TrueForeground([f.image for f, _ in pairs], [c.image for _, c in pairs]))
+    return out
+
+
 def degraded_copy(seq, blur_px: float, noise: float, out: Path) -> list[Path]:
     """Each camera's frames blurred by ``blur_px`` and with ``noise`` grey levels of Gaussian noise
     (:func:`jaxhand.render.degrade`; one generator over the frames in order, seeded as the dev
@@ -192,7 +225,8 @@ def degraded_copy(seq, blur_px: float, noise: float, out: Path) -> list[Path]:
 
 
 def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: float = 0.5, q0=None,
-          per_frame: bool = False, overlays: Path | None = None, folders: list[Path] | None = None):
+          per_frame: bool = False, overlays: Path | None = None, folders: list[Path] | None = None,
+          true_fg: bool = False):
     m, cams = seq.model, seq.truth.cameras
     n = len(seq.truth.q) if frames is None else min(frames, len(seq.truth.q))
     if exact:
@@ -201,7 +235,8 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         if folders is None:
             folders = [seq.folder / Path(f[0]).parent for f in seq.truth.image_files]
         images = open_frames(folders, fps=seq.truth.fps)
-        frontend = image_front_end(m, cams, config.image, images, n)
+        frontend = (ImageFrontEnd(m, cams, config.image, foregrounds=true_foregrounds(seq, folders, n)) if true_fg
+                    else image_front_end(m, cams, config.image, images, n))
     tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
     state = tracker.init(seq.truth.q[0] if q0 is None else q0)
     filt, raw, times, conf, lost_flags, labels, seen = [], [], [], [], [], [], []
@@ -341,6 +376,10 @@ def main(argv=None) -> None:
                    help="track copies of the frames blurred (Gaussian sigma, px) and with Gaussian noise (grey "
                         "levels) as the cluttered copy was, e.g. 0.6,5 on open_close: what noise alone costs; "
                         "the sequence is recorded as <name>+blur<B>+noise<N>")
+    p.add_argument("--true-foreground", action="store_true",
+                   help="the image runs read the true foreground (the clean sequence's frames over "
+                        f"{TRUE_FG_GREY}; for open_close_noise_clutter, open_close's) instead of their own "
+                        "foreground model: what a perfect segmentation would give; recorded as <name>+true-fg")
     add_runtime_option(p)
     args = p.parse_args(argv)
     if args.seeds < 1 or (args.seeds > 1 and not args.start_deg > 0):
@@ -358,6 +397,8 @@ def main(argv=None) -> None:
         if scratch is not None:
             folders = degraded_copy(seq, *args.degrade, Path(scratch.name) / name)
             name = f"{name}+blur{args.degrade[0]:g}+noise{args.degrade[1]:g}"
+        if args.true_foreground:
+            name = f"{name}+true-fg"
         for setting in args.settings.split(","):
             config = TrackConfig().merged(SETTINGS[setting]).merged(args.extra)
             reference = config if args.reference is None else TrackConfig().merged(SETTINGS[args.reference])
@@ -368,7 +409,7 @@ def main(argv=None) -> None:
                 used = reference if exact else config
                 r = track(seq, used, exact, args.frames, noise_px=args.reference_noise_px,
                           q0=start_pose(seq, args.start_deg, seed), per_frame=args.per_frame, overlays=where,
-                          folders=folders)
+                          folders=folders, true_fg=args.true_foreground)
                 rec = {"sequence": name, "setting": setting, "features": "exact" if exact else "image",
                        "start_deg": args.start_deg, "seed": seed, **r, "config": config_to_dict(used)}
                 records.append(rec)

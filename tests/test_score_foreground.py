@@ -10,6 +10,7 @@ from mujoco_hand import frame
 from jaxhand.image import ImageConfig
 from jaxhand.io import load_devset, open_frames
 from jaxhand.score import (
+    AbstractForeground,
     BackgroundForeground,
     ScoreSection,
     SequenceBackground,
@@ -143,6 +144,30 @@ def test_the_front_end_scores_with_the_fitted_skin():
         state = fe.extract([bgr], q0, None, 0).state
         scores[fit] = float(fe.score([bgr], q0[None], state)[0])
     assert scores[True] > 0.9 and scores[False] < scores[True] - 0.05   # 0.92 and 0.85
+
+
+class _GivenMask(AbstractForeground):
+    def __init__(self, mask):
+        self.given = mask
+
+    def mask(self, image):
+        return self.given
+
+
+def test_the_front_end_reads_a_callers_foreground():
+    """A caller's foreground replaces the config's (here generic skin, which takes the wood too):
+    the true pose scores as with the fitted skin on the hand's own mask, and far lower on a shifted one."""
+    seq = load_devset(DEVSET / "open_close")
+    q0 = np.asarray(seq.truth.q[0])
+    bgr, m, cam, _, hand, _ = _skin_scene(q0)
+    config = ImageConfig(score=ScoreSection(foreground="skin", skin_fit=False))
+    scores = []
+    for given in (hand, np.roll(hand, 30, axis=1)):
+        fe = ImageFrontEnd(m, cam, config, foregrounds=[_GivenMask(given)])
+        scores.append(float(fe.score([bgr], q0[None], fe.extract([bgr], q0, None, 0).state)[0]))
+    assert scores[0] > 0.9 and scores[1] < 0.6
+    with pytest.raises(ValueError, match=r"foregrounds: expected one jaxhand.score.AbstractForeground per camera"):
+        ImageFrontEnd(m, cam, config, foregrounds=[_GivenMask(hand)] * 2)
 
 
 def test_skin_needs_colour_frames():

@@ -22,6 +22,7 @@ from ..image import ImageConfig, ImageState, WindowOutlines, extract_features, r
 from ..image.searches import TEMPLATE_SEARCHES
 from ..model import Model
 from ..score import (
+    AbstractForeground,
     camera_numbers,
     capsules_from_model_batch,
     foreground_for,
@@ -132,15 +133,23 @@ class ImageFrontEnd(AbstractFrontEnd):
     reextracts: ClassVar[bool] = True
 
     def __init__(self, model: Model, cameras, config: ImageConfig | None = None, *,
-                 background_frames: Sequence[np.ndarray] | None = None):
+                 background_frames: Sequence[np.ndarray] | None = None,
+                 foregrounds: Sequence[AbstractForeground] | None = None):
         """``background_frames``: per camera, (N, H, W[, 3]) frames spread over the sequence, the
-        first of them the sequence's first frame, for the "sequence" foreground (``config.score``)."""
+        first of them the sequence's first frame, for the "sequence" foreground (``config.score``).
+        ``foregrounds``: per camera, a foreground model that replaces the one ``config.score``
+        chooses (a caller's own segmentation), wherever a foreground is read."""
         self.model, self.cameras = model, as_rig(cameras)
         self.config = ImageConfig() if config is None else config
         if background_frames is not None and len(background_frames) != len(self.cameras):
             raise InputError(f"background_frames: expected one stack per camera ({len(self.cameras)}), "
                              f"got {len(background_frames)}")
+        if foregrounds is not None and (len(foregrounds) != len(self.cameras)
+                                        or not all(isinstance(f, AbstractForeground) for f in foregrounds)):
+            raise InputError(f"foregrounds: expected one jaxhand.score.AbstractForeground per camera "
+                             f"({len(self.cameras)}), got {foregrounds!r}")
         self.background_frames = background_frames
+        self._given_fg = None if foregrounds is None else tuple(foregrounds)
         self._sequence_fg: tuple | None = None   # the "sequence" foregrounds, built at the first frame's pose
         self._skin_fg: tuple | None = None   # the "skin" foregrounds, fitted at the first frame's pose
         self._cams = tuple(camera_numbers(c) for c in self.cameras) if self.config.score.enabled else ()
@@ -155,7 +164,7 @@ class ImageFrontEnd(AbstractFrontEnd):
         if self.background_frames is not None and self._sequence_fg is None:
             self._sequence_fg = tuple(sequence_foreground(self.model, cam, q, frames)
                                       for cam, frames in zip(self.cameras, self.background_frames))
-        if self._skin_fg is None:
+        if self._skin_fg is None and self._given_fg is None:
             section = self._section()
             self._skin_fg = tuple(skin_foreground(self.model, cam, q, im, section)
                                   if im is not None and foreground_kind(section, im) == "skin" else None
@@ -258,8 +267,10 @@ class ImageFrontEnd(AbstractFrontEnd):
         return self._evidence[1]
 
     def _foreground(self, section, c: int, image):
-        """Camera ``c``'s foreground model for ``image``: the learned one for "sequence", the one
-        fitted at the first frame for "skin"."""
+        """Camera ``c``'s foreground model for ``image``: the caller's, else the learned one for
+        "sequence", the one fitted at the first frame for "skin"."""
+        if self._given_fg is not None:
+            return self._given_fg[c]
         if section.foreground == "sequence" and self._sequence_fg is not None:
             return self._sequence_fg[c]
         if self._skin_fg is not None and self._skin_fg[c] is not None and section.foreground in ("skin", "auto"):
