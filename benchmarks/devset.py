@@ -47,11 +47,10 @@ from _common import REPO, RESULTS, add_runtime_option, apply_runtime, environmen
 from jaxhand.io import load_devset, open_frames  # noqa: E402
 from jaxhand.kinematics import project_pose  # noqa: E402
 from jaxhand.render import degrade  # noqa: E402
-from jaxhand.score import AbstractForeground  # noqa: E402
+from jaxhand.score import MaskForeground  # noqa: E402
 from jaxhand.track import (  # noqa: E402
     PRESETS,
     ExactFrontEnd,
-    ImageFrontEnd,
     Review,
     TrackConfig,
     Tracker,
@@ -185,27 +184,13 @@ CLEAN_TWIN = {"open_close_noise_clutter": "open_close"}
 TRUE_FG_GREY = 20
 
 
-class TrueForeground(AbstractForeground):
-    """The true foreground of a tracked copy, looked up by the frame's content (a review tracks
-    frames again out of order): the clean twin's frame over :data:`TRUE_FG_GREY`."""
-
-    def __init__(self, frames, clean_frames):
-        self._masks = {np.ascontiguousarray(f).tobytes(): np.asarray(c) > TRUE_FG_GREY
-                       for f, c in zip(frames, clean_frames)}
-
-    def mask(self, image) -> np.ndarray:
-        return self._masks[np.ascontiguousarray(image).tobytes()]
-
-
-def true_foregrounds(seq, folders: list[Path], n: int) -> list[TrueForeground]:
-    """Per camera, the :class:`TrueForeground` of the first ``n`` frames read from ``folders``."""
+def true_foregrounds(seq, folders: list[Path]) -> list[MaskForeground]:
+    """Per camera, the true foreground of the frames read from ``folders``: the clean twin's frames
+    over :data:`TRUE_FG_GREY`, matched to them by content (:class:`jaxhand.score.MaskForeground`)."""
     clean = load_devset(REPO / "data" / "mujoco" / CLEAN_TWIN.get(seq.folder.name, seq.folder.name))
     clean_folders = [clean.folder / Path(f[0]).parent for f in clean.truth.image_files]
-    out = []
-    for source, clean_source in zip(open_frames(folders), open_frames(clean_folders)):
-        pairs = list(zip(source, clean_source))[:n]
-        out.append(TrueForeground([f.image for f, _ in pairs], [c.image for _, c in pairs]))
-    return out
+    return [MaskForeground((f.image for f in source), [c.image > TRUE_FG_GREY for c in clean_source])
+            for source, clean_source in zip(open_frames(folders), open_frames(clean_folders))]
 
 
 def degraded_copy(seq, blur_px: float, noise: float, out: Path) -> list[Path]:
@@ -235,8 +220,8 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         if folders is None:
             folders = [seq.folder / Path(f[0]).parent for f in seq.truth.image_files]
         images = open_frames(folders, fps=seq.truth.fps)
-        frontend = (ImageFrontEnd(m, cams, config.image, foregrounds=true_foregrounds(seq, folders, n)) if true_fg
-                    else image_front_end(m, cams, config.image, images, n))
+        frontend = image_front_end(m, cams, config.image, images, n,
+                                   foregrounds=true_foregrounds(seq, folders) if true_fg else None)
     tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
     state = tracker.init(seq.truth.q[0] if q0 is None else q0)
     filt, raw, times, conf, lost_flags, labels, seen = [], [], [], [], [], [], []

@@ -73,6 +73,10 @@ def register(sub) -> None:
                         "in the first frame at the first pose), 'background' needs "
                         "[image.score] background_image in --config (default: the settings', "
                         f"{defaults.image.score.foreground}; 'auto' where a preset's silhouette term needs one)")
+    p.add_argument("--masks", nargs="+", metavar="DIR",
+                   help="a folder of foreground masks per camera (one image per frame, in the frames' order; "
+                        "nonzero: the hand), e.g. from a segmentation network: read instead of --foreground's model "
+                        "wherever a foreground is read (the silhouette term, the score, the support)")
     p.add_argument("--fps", type=float, default=25.0, help="frame rate of image folders")
     p.add_argument("--scale", type=float, default=1.0,
                    help="track the frames resized by this factor in (0, 1], the cameras and --landmarks with them "
@@ -170,6 +174,26 @@ def _resolve(args, colour: bool = False):
     return model, cameras, sources, truth, q_first, native
 
 
+def given_masks(folders, sources) -> list:
+    """``--masks``: one :class:`~jaxhand.score.MaskForeground` per camera from its folder of mask
+    images (natural order), matched to that camera's frames."""
+    from .io import FrameSource
+    from .score import MaskForeground
+
+    if len(folders) != len(sources):
+        raise InputError(f"--masks: {len(folders)} folder(s) for {len(sources)} camera(s): give one per camera")
+    out = []
+    for folder, source in zip(folders, sources):
+        files = FrameSource(folder).files
+        if files is None:
+            raise InputError(f"--masks {folder}: expected a folder of mask images, not a video")
+        try:
+            out.append(MaskForeground((f.image for f in source), files))
+        except InputError as err:
+            raise InputError(f"--masks {folder}: {err}") from None
+    return out
+
+
 def load_truth_arg(path: str | Path, model) -> np.ndarray:
     """The (frames, n_q) ground truth of ``--truth PATH`` in ``model``'s q order: a ``jaxhand synth``
     ``ground_truth.json`` or its folder, or a dev-set ``truth.json`` (``data/mujoco/``'s format) or
@@ -259,7 +283,7 @@ def _track(args) -> int:
     from ._errors import OutputExistsError
     from .cli import out_dir
     from .io import parse_pose
-    from .track import track_sequence
+    from .track import image_front_end, track_sequence
 
     config = track_config_from_args(args)   # first: a bad settings file fails before any frame is read
     if args.max_frames is not None and args.max_frames < 1:
@@ -283,8 +307,15 @@ def _track(args) -> int:
         q0 = np.asarray(q_first)
     else:
         q0 = parse_pose(model, args.init)
+    frontend = None
+    if args.masks:
+        if not (config.image.score.enabled or config.image.silhouette_term.enabled or config.support.enabled):
+            raise InputError("--masks: these settings read no foreground (no score, silhouette term or support): "
+                             "add --preset robust-temporal, or --foreground auto for the score")
+        frontend = image_front_end(model, cameras, config.image, sources, args.max_frames,
+                                   foregrounds=given_masks(args.masks, sources))
     try:
-        summary = track_sequence(model, cameras, sources, q0, out, config=config, truth=truth,
+        summary = track_sequence(model, cameras, sources, q0, out, frontend, config=config, truth=truth,
                                  video=not args.no_video, max_frames=args.max_frames, overwrite=args.overwrite,
                                  resume=args.resume, landmarks=landmarks)
     except OutputExistsError as err:

@@ -146,6 +146,33 @@ def test_skin_foreground_reads_colour_frames(index_input, tmp_path, capsys):
     assert json.loads((tmp_path / "o" / "summary.json").read_text())["frames"] == 2
 
 
+def test_masks_replace_the_foreground_model(index_input, tmp_path, capsys):
+    """--masks: the robust preset's silhouette term and support read the given masks. On the
+    frames' own silhouettes the still finger stays at its pose; on the same masks moved 20 px it
+    is pulled off it. A folder with a mask short, or settings that read no foreground, are one
+    line each."""
+    moved = {}
+    for shift in (0, 20):
+        folder = tmp_path / f"masks{shift}"
+        folder.mkdir()
+        for f in sorted((index_input / "frames").iterdir()):
+            m = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE) > 0
+            cv2.imwrite(str(folder / f.name), np.roll(m, shift, axis=1).astype(np.uint8) * 255)
+        out = tmp_path / f"o{shift}"
+        assert main(_track(index_input, "--model", "index", "--out", str(out), "--preset", "robust", "--masks",
+                           str(folder), "--max-frames", "2", "--no-video")) == 0
+        q = np.load(out / "results.npz")["q"]
+        moved[shift] = float(np.degrees(np.abs(q - jh.builtin_model("index").q_default).max()))
+    assert moved[0] < 2.0 and moved[20] > 10.0, moved   # 0.2 and 33 deg
+    (tmp_path / "masks0" / "f3.png").unlink()
+    assert main(_track(index_input, "--model", "index", "--out", str(tmp_path / "o"), "--foreground", "auto",
+                       "--masks", str(tmp_path / "masks0"))) == 2
+    assert "--masks " in (err := _one_line_error(capsys)) and "3 mask(s) for 4 frame(s)" in err
+    assert main(_track(index_input, "--model", "index", "--out", str(tmp_path / "o"), "--masks",
+                       str(tmp_path / "masks20"))) == 2
+    assert "--masks: these settings read no foreground" in _one_line_error(capsys)
+
+
 def test_flags_are_named_in_config_errors(index_input, tmp_path, capsys):
     out = str(tmp_path / "o")
     for flags, want in ((["--steps", "0"], "--steps: expected an integer >= 1, got 0"),

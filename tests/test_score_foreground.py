@@ -12,6 +12,7 @@ from jaxhand.io import load_devset, open_frames
 from jaxhand.score import (
     AbstractForeground,
     BackgroundForeground,
+    MaskForeground,
     ScoreSection,
     SequenceBackground,
     SkinForeground,
@@ -168,6 +169,27 @@ def test_the_front_end_reads_a_callers_foreground():
     assert scores[0] > 0.9 and scores[1] < 0.6
     with pytest.raises(ValueError, match=r"foregrounds: expected one jaxhand.score.AbstractForeground per camera"):
         ImageFrontEnd(m, cam, config, foregrounds=[_GivenMask(hand)] * 2)
+
+
+def test_mask_foreground_matches_masks_to_frames_by_content(tmp_path):
+    rng = np.random.default_rng(4)
+    frames = [rng.integers(0, 255, (12, 16), np.uint8) for _ in range(3)]
+    masks = [rng.random((12, 16)) > 0.5 for _ in range(3)]
+    given = MaskForeground(iter(frames), masks)
+    for k in (2, 0, 1, 1):   # out of order and again, as a review and the score read them
+        np.testing.assert_array_equal(given.mask(frames[k]), masks[k])
+    with pytest.raises(ValueError, match=r"this frame \(\(12, 16\)\) is none of the 3 frames"):
+        given.mask(frames[0] + 1)
+    with pytest.raises(ValueError, match=r"masks: 2 mask\(s\) for 3 frame\(s\)"):
+        MaskForeground(frames, masks[:2])
+    paths = []
+    for k, m in enumerate(masks):   # mask images at twice the frames' size, read when first asked for
+        paths.append(tmp_path / f"m{k}.png")
+        cv2.imwrite(str(paths[-1]), np.kron(m, np.ones((2, 2))).astype(np.uint8) * 255)
+    np.testing.assert_array_equal(MaskForeground(frames, paths).mask(frames[1]), masks[1])
+    cv2.imwrite(str(paths[0]), np.zeros((12, 30), np.uint8))
+    with pytest.raises(ValueError, match=r"m0.png: a 30x12 mask for a 16x12 frame"):
+        MaskForeground(frames, paths).mask(frames[0])
 
 
 def test_skin_needs_colour_frames():

@@ -278,13 +278,15 @@ class ImageFrontEnd(AbstractFrontEnd):
         return foreground_for(section, image)
 
 
-def image_front_end(model: Model, cameras, config: ImageConfig, sources, n_frames: int | None = None) -> ImageFrontEnd:
+def image_front_end(model: Model, cameras, config: ImageConfig, sources, n_frames: int | None = None,
+                    foregrounds: Sequence[AbstractForeground] | None = None) -> ImageFrontEnd:
     """The :class:`ImageFrontEnd` for a sequence read from ``sources`` (one frame source per camera,
-    :func:`jaxhand.io.open_frames`), given the frames its "sequence" foreground learns from."""
+    :func:`jaxhand.io.open_frames`), given the frames its "sequence" foreground learns from;
+    ``foregrounds`` as :class:`ImageFrontEnd`'s."""
     frames = None
-    if config.score.foreground == "sequence":
+    if config.score.foreground == "sequence" and foregrounds is None:
         frames = [s.spread(config.score.sequence_frames, n_frames) for s in sources]
-    return ImageFrontEnd(model, cameras, config, background_frames=frames)
+    return ImageFrontEnd(model, cameras, config, background_frames=frames, foregrounds=foregrounds)
 
 
 class ExactFrontEnd(AbstractFrontEnd):
