@@ -73,8 +73,8 @@ def register(sub) -> None:
                         "in the first frame at the first pose), 'background' needs "
                         "[image.score] background_image in --config (default: the settings', "
                         f"{defaults.image.score.foreground}; 'auto' where a preset's silhouette term needs one)")
-    p.add_argument("--masks", nargs="+", metavar="DIR",
-                   help="a folder of foreground masks per camera (one image per frame, in the frames' order; "
+    p.add_argument("--masks", action="append", metavar="DIR",
+                   help="a folder of foreground masks (once per camera; one image per frame, in the frames' order; "
                         "nonzero: the hand), e.g. from a segmentation network: read instead of --foreground's model "
                         "wherever a foreground is read (the silhouette term, the score, the support)")
     p.add_argument("--fps", type=float, default=25.0, help="frame rate of image folders")

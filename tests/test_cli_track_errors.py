@@ -171,6 +171,9 @@ def test_masks_replace_the_foreground_model(index_input, tmp_path, capsys):
     assert main(_track(index_input, "--model", "index", "--out", str(tmp_path / "o"), "--masks",
                        str(tmp_path / "masks20"))) == 2
     assert "--masks: these settings read no foreground" in _one_line_error(capsys)
+    assert main(_track(index_input, "--model", "index", "--out", str(tmp_path / "o"), "--preset", "robust",
+                       "--masks", str(tmp_path / "masks20"), "--masks", str(tmp_path / "masks20"))) == 2
+    assert "--masks: 2 folder(s) for 1 camera(s): give one per camera" in _one_line_error(capsys)
 
 
 def test_flags_are_named_in_config_errors(index_input, tmp_path, capsys):
