@@ -34,6 +34,7 @@ from ._foreground import ThresholdForeground as ThresholdForeground
 from ._foreground import as_grey as as_grey
 from ._foreground import fill_holes as fill_holes
 from ._masks import MaskForeground as MaskForeground
+from ._masks import frame_digest as frame_digest
 from ._score import ImageEvidence as ImageEvidence
 from ._score import ImageScore as ImageScore
 from ._score import ScoreConfig as ScoreConfig
@@ -69,7 +70,7 @@ from ._term import silhouette_term as silhouette_term
 __all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsules_from_model",
            "capsules_from_model_batch", "capsule_outlines",
            "rasterize", "AbstractForeground", "ThresholdForeground", "BackgroundForeground", "SkinForeground",
-           "MaskForeground",
+           "MaskForeground", "frame_digest",
            "as_grey", "ScoreConfig", "ImageEvidence", "ImageScore", "image_evidence", "model_contour",
            "score_silhouette", "score_frame", "score_poses", "ConfidenceConfig", "frame_confidence", "FOREGROUNDS",
            "ScoreSection", "foreground_for", "foreground_kind", "sequence_foreground", "skin_foreground",

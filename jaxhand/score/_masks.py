@@ -15,10 +15,11 @@ import numpy as np
 from .._errors import InputError
 from ._foreground import AbstractForeground
 
-__all__ = ["MaskForeground"]
+__all__ = ["MaskForeground", "frame_digest"]
 
 
-def _digest(image) -> bytes:
+def frame_digest(image) -> bytes:
+    """A short digest of a frame's pixels and shape: the key by which a frame is known again."""
     a = np.ascontiguousarray(image)
     return hashlib.blake2b(a.tobytes() + repr(a.shape).encode(), digest_size=16).digest()
 
@@ -39,7 +40,7 @@ class MaskForeground(AbstractForeground):
         count = 0
         for k, frame in enumerate(frames):
             if frame is not None:   # an unreadable frame keeps its place
-                self._index.setdefault(_digest(frame), k)
+                self._index.setdefault(frame_digest(frame), k)
             count = k + 1
         self.masks = list(masks)
         if len(self.masks) != count:
@@ -47,7 +48,7 @@ class MaskForeground(AbstractForeground):
         self._last: tuple[int, np.ndarray] | None = None
 
     def mask(self, image) -> np.ndarray:
-        k = self._index.get(_digest(image))
+        k = self._index.get(frame_digest(image))
         if k is None:
             raise InputError(f"masks: this frame ({np.shape(image)}) is none of the {len(self.masks)} frames the "
                              "masks were given for")
@@ -58,14 +59,14 @@ class MaskForeground(AbstractForeground):
     def _read(self, k: int, shape: tuple[int, int]) -> np.ndarray:
         given = self.masks[k]
         name = f"mask {k}" if isinstance(given, np.ndarray) else str(given)
-        m = np.asarray(given) if isinstance(given, np.ndarray) else cv2.imread(str(given), cv2.IMREAD_GRAYSCALE)
+        m = given if isinstance(given, np.ndarray) else cv2.imread(str(given), cv2.IMREAD_GRAYSCALE)
         if m is None or m.ndim != 2:
             raise InputError(f"{name}: cannot read as a one-channel mask image")
+        m = m > 0
         if m.shape != shape:
             (h, w), (mh, mw) = shape, m.shape
             if abs(mw / mh - w / h) > 0.01 * w / h:
                 raise InputError(f"{name}: a {mw}x{mh} mask for a {w}x{h} frame (width x height): give masks of "
                                  "the frames' size")
-            m = np.asarray(m) > 0
             m = cv2.resize(m.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA) >= 0.5
-        return np.asarray(m) > 0
+        return m

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import abc
 import dataclasses
-import hashlib
 from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
@@ -27,6 +26,7 @@ from ..score import (
     capsules_from_model_batch,
     foreground_for,
     foreground_kind,
+    frame_digest,
     image_evidence,
     rasterize,
     roi_box,
@@ -258,8 +258,7 @@ class ImageFrontEnd(AbstractFrontEnd):
         return self._cams or tuple(camera_numbers(c) for c in self.cameras)
 
     def _frame_evidence(self, images) -> tuple:
-        key = tuple(hashlib.blake2b(np.ascontiguousarray(im), digest_size=16).digest() + repr(np.shape(im)).encode()
-                    for im in images)
+        key = tuple(frame_digest(im) for im in images)
         if self._evidence is None or self._evidence[0] != key:
             section = self._section()
             self._evidence = (key, tuple(image_evidence(im, self._foreground(section, c, im), section.silhouette)
