@@ -346,6 +346,8 @@ def main(argv=None) -> None:
     p.add_argument("--seeds", type=int, default=1,
                    help="runs per sequence and setting, each from its own seeded start (needs --start-deg); the "
                         "spread of their errors says how much of a difference between settings is chance")
+    p.add_argument("--first-seed", type=int, default=0,
+                   help="the first seed of --seeds (to split the seeds of one comparison over processes)")
     p.add_argument("--reference", default=None, choices=list(SETTINGS),
                    help="run the exact-feature reference with this setting instead of each setting's own (issue "
                         "13 measures against the default tracker's: `--reference default`); the image-based parts "
@@ -387,7 +389,8 @@ def main(argv=None) -> None:
         for setting in args.settings.split(","):
             config = TrackConfig().merged(SETTINGS[setting]).merged(args.extra)
             reference = config if args.reference is None else TrackConfig().merged(SETTINGS[args.reference])
-            for exact, seed in itertools.product((False,) if args.no_exact else (False, True), range(args.seeds)):
+            seeds = range(args.first_seed, args.first_seed + args.seeds)
+            for exact, seed in itertools.product((False,) if args.no_exact else (False, True), seeds):
                 if args.per_frame:
                     print(f"{name} {setting} {'exact' if exact else 'image'} seed {seed}:", flush=True)
                 where = None if args.overlays is None else args.overlays / f"{name}_{setting}_{seed}"

@@ -7,7 +7,9 @@ plain median of the frames (:meth:`BackgroundForeground.from_frames`), and
 :class:`SequenceBackground` (the ``"sequence"`` foreground) from its anchored mode alone and while
 the true poses are observed after each frame (as the tracker observes its estimates). Writes
 ``results/foreground.json`` and ``results/foreground.png`` (one frame: the image, then each
-model's mask with missed hand pixels blue and extra ones red).
+model's mask with missed hand pixels blue and extra ones red). ``--masks DIR`` also writes every
+frame's mask per model, and the true one, as ``DIR/<model>/NNN.png``: ``jaxhand track
+data/mujoco/open_close_noise_clutter --masks DIR/<model> ...`` then tracks on exactly those masks.
 
 Run: ``PYTHONPATH=. .venv/bin/python benchmarks/foreground.py`` (about 20 s).
 """
@@ -56,10 +58,17 @@ def _picture(image: np.ndarray, masks: dict, truth: np.ndarray) -> np.ndarray:
     return np.hstack(panels)
 
 
+def _slug(name: str) -> str:
+    """A model's name as a folder name: ``"sequence, true poses observed"`` -> ``sequence_true_poses_observed``."""
+    return "_".join(name.replace(",", " ").split())
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frame", type=int, default=20, help="the frame drawn in foreground.png")
     ap.add_argument("--sequence-frames", type=int, default=60, help="frames the sequence models learn from")
+    ap.add_argument("--masks", type=Path, default=None, metavar="DIR",
+                    help="write every frame's mask per model (and the true one) under DIR, for jaxhand track --masks")
     args = ap.parse_args(argv)
     jh.enable_x64()
     seq = load_devset(DEVSET / "open_close_noise_clutter")
@@ -77,7 +86,12 @@ def main(argv=None) -> None:
               "sequence, mode only": sequence_foreground(seq.model, cam, seq.truth.q[0], spread),
               "sequence, true poses observed": learned}
     iou = {name: [] for name in models}
+    missed = {name: [] for name in models}
+    extra = {name: [] for name in models}
     ms = {name: [] for name in models}
+    folders = {} if args.masks is None else {name: args.masks / _slug(name) for name in [*models, "true"]}
+    for folder in folders.values():
+        folder.mkdir(parents=True, exist_ok=True)
     picture = None
     for f in source:
         masks = {}
@@ -86,6 +100,11 @@ def main(argv=None) -> None:
             masks[name] = model.mask(f.image).astype(bool)
             ms[name].append(1e3 * (time.perf_counter() - t0))
             iou[name].append(_iou(masks[name], truths[f.index]))
+            missed[name].append(int((truths[f.index] & ~masks[name]).sum()))
+            extra[name].append(int((masks[name] & ~truths[f.index]).sum()))
+        for name, folder in folders.items():
+            cv2.imwrite(str(folder / f"{f.index:03d}.png"), 255 * (truths[f.index] if name == "true" else masks[name])
+                        .astype(np.uint8))
         if f.index == args.frame:
             picture = _picture(f.image, masks, truths[f.index])
         q = np.asarray(seq.truth.q[f.index])
@@ -94,9 +113,12 @@ def main(argv=None) -> None:
     for name in models:
         a = np.asarray(iou[name])
         records[name] = {"iou_min": float(a.min()), "iou_median": float(np.median(a)), "iou_max": float(a.max()),
-                         "iou_per_frame": a.round(4).tolist(), "ms_per_mask_median": float(np.median(ms[name]))}
-        rows.append([name, f"{a.min():.3f}", f"{np.median(a):.3f}", f"{a.max():.3f}", f"{np.median(ms[name]):.2f}"])
-    print(format_table(rows, ["foreground", "IoU min", "IoU median", "IoU max", "ms per mask"]))
+                         "iou_per_frame": a.round(4).tolist(), "missed_px_median": float(np.median(missed[name])),
+                "extra_px_median": float(np.median(extra[name])), "ms_per_mask_median": float(np.median(ms[name]))}
+        rows.append([name, f"{a.min():.3f}", f"{np.median(a):.3f}", f"{a.max():.3f}", f"{np.median(missed[name]):.0f}",
+                     f"{np.median(extra[name]):.0f}", f"{np.median(ms[name]):.2f}"])
+    print(format_table(rows, ["foreground", "IoU min", "IoU median", "IoU max", "missed px median",
+                              "extra px median", "ms per mask"]))
     print(f"SequenceBackground built from {len(spread)} frames in {build_s:.2f} s")
     if picture is not None:
         cv2.imwrite(str(RESULTS / "foreground.png"), picture)
