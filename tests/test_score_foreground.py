@@ -12,6 +12,7 @@ from jaxhand.io import load_devset, open_frames
 from jaxhand.score import (
     AbstractForeground,
     BackgroundForeground,
+    ColourSequenceBackground,
     MaskForeground,
     ScoreSection,
     SequenceBackground,
@@ -197,8 +198,9 @@ def test_skin_needs_colour_frames():
         foreground_for(ScoreSection(foreground="skin"), np.zeros((4, 4), np.uint8))
     with pytest.raises(ValueError, match="score.skin_fit_distance: need > 0, got 0"):
         ScoreSection(foreground="skin", skin_fit_distance=0)
-    assert ScoreSection(foreground="skin").reads_colour
-    assert not any(ScoreSection(foreground=f).reads_colour for f in ("auto", "none", "sequence", "threshold"))
+    assert ScoreSection(foreground="skin").reads_colour and ScoreSection(foreground="skin").needs_colour
+    assert ScoreSection(foreground="sequence").reads_colour and not ScoreSection(foreground="sequence").needs_colour
+    assert not any(ScoreSection(foreground=f).reads_colour for f in ("auto", "none", "threshold"))
 
 
 def test_bad_inputs():
@@ -249,6 +251,30 @@ def test_sequence_background_keeps_the_still_hand_and_learns_the_moving_one():
         SequenceBackground(frames, palm[:10])
     with pytest.raises(ValueError, match="silhouette: expected shape"):
         model.observe(frames[0], palm[:10])
+
+
+def test_colour_sequence_background_finds_a_hand_of_the_backgrounds_grey():
+    """A palm and a moving finger whose colour has the grey of the background behind them: the
+    grey background learns nothing of the finger, the colour one finds it as the grey one finds
+    a bright finger."""
+    _, hands, palm, _ = _moving_finger_frames()
+    finger = hands[4] & ~palm
+    rng = np.random.default_rng(5)
+    bg = cv2.GaussianBlur(rng.uniform(60, 180, (60, 80)), (0, 0), 3)
+    colour = []
+    for hand in hands:
+        f = np.repeat(bg[..., None], 3, axis=2) + rng.normal(0, 2, bg.shape + (3,))
+        f[hand] = np.stack([bg + 50, bg - 50 * 0.413 / 0.587, bg + 50], -1)[hand]   # B, G, R of the same grey
+        colour.append(np.clip(np.rint(f), 0, 255).astype(np.uint8))
+    grey = [cv2.cvtColor(f, cv2.COLOR_BGR2GRAY) for f in colour]
+    assert SequenceBackground(grey, hands[0]).mask(grey[4])[finger].mean() < 0.1
+    model = ColourSequenceBackground(colour, hands[0])
+    assert [c.noise for c in model.channels] == [3.0, 3.0, 3.0]
+    assert np.count_nonzero(model.mask(colour[4]) != hands[4]) <= 8
+    with pytest.raises(ValueError, match=r"frames\[0\]: expected a BGR frame"):
+        ColourSequenceBackground(grey, hands[0])
+    with pytest.raises(ValueError, match="image: expected a BGR frame"):
+        model.observe(grey[4], hands[4])
 
 
 def test_sequence_background_drops_a_mode_the_tracked_model_covers():

@@ -168,3 +168,27 @@ def test_the_foreground_outline_is_compared_near_the_model_only():
     assert len(pts_near) > 40 and pts_near[:, 0].max() < 41 and pts_near[:, 0].min() > 28
     with pytest.raises(jh.InputError, match=r"silhouette_term\.roi_margin: need a fraction >= 0 or None"):
         SilhouetteTermConfig(roi_margin=-1.0)
+
+
+def test_a_gated_outline_point_far_outside_the_model_hardly_pulls(open_close):
+    """open_close frame 20 with a bright bar beside the hand (a second object inside the region of
+    interest): its outline points lie 15 px and more outside every pill. Ungated they pull on the
+    pose as hard as any; with ``cover_gate_px`` 5 their Jacobian rows shrink to a small fraction,
+    while the points on the hand's own outline keep theirs."""
+    image = _frame(open_close, 20).copy()
+    ys, xs = np.nonzero(image > 20)
+    image[ys.min():ys.max(), xs.max() + 15: xs.max() + 25] = 200
+    q = _q(open_close, 20)
+    configs = {gate: SilhouetteTermConfig(weight=0.5, cover_gate_px=gate) for gate in (None, 5.0)}
+    terms = {gate: silhouette_term(image, ThresholdForeground(), 0, c) for gate, c in configs.items()}
+    priors = {gate: t.bind(open_close.model, tuple(open_close.truth.cameras)) for gate, t in terms.items()}
+    n = ON.contour_points
+    d = np.asarray(priors[None].distances(q)[0][0])
+    valid = np.asarray(terms[None].contour_valid)
+    far, near = valid & (d > 15), valid & (np.abs(d) < 1)
+    assert far.sum() >= 10 and near.sum() >= 30
+    rows = {gate: np.linalg.norm(np.asarray(jax.jacfwd(p)(q))[:n], axis=1) for gate, p in priors.items()}
+    assert rows[5.0][far].mean() < 0.05 * rows[None][far].mean()   # 0.016
+    np.testing.assert_allclose(rows[5.0][near], rows[None][near], rtol=0.05)
+    with pytest.raises(jh.InputError, match=r"silhouette_term\.cover_gate_px: need > 0 px or None"):
+        SilhouetteTermConfig(cover_gate_px=0.0)

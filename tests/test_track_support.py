@@ -171,6 +171,21 @@ def test_a_link_off_its_own_edges_loses_its_side_share_and_with_it_its_support(o
         ScoreConfig(side_fractions=(0.5, 1.5))
 
 
+def test_side_edges_are_found_in_colour_where_the_grey_has_none(opposition):
+    """thumb_opposition frame 20 repainted with its shading in colour alone (blue and red up where
+    green goes down, the grey flat at 120): the grey image has no edge across any side, the colour
+    one finds the hand's edges across nearly all of every link's sides, as the grey original does."""
+    seq, m = opposition, opposition.model
+    original = cv2.imread(str(seq.image_paths[0][20]), cv2.IMREAD_GRAYSCALE).astype(float)
+    d = 0.8 * (original - 120.0)
+    colour = np.rint(np.stack([120 + d, 120 - d * 0.299 / 0.587 - d * 0.114 / 0.587, 120 + d], -1)).astype(np.uint8)
+    grey = cv2.cvtColor(colour, cv2.COLOR_BGR2GRAY)
+    assert np.ptp(grey) <= 2
+    q, sides = np.array(seq.truth.q[20]), ScoreConfig(side_edge_px=2.0)
+    assert np.nanmax(side_edge_share(grey, m, seq.truth.cameras[0], q, sides)) == 0.0
+    assert np.nanmin(side_edge_share(colour, m, seq.truth.cameras[0], q, sides)) >= 0.85   # 0.875 at 0.8 the contrast
+
+
 class _Supported(AbstractFrontEnd):
     """Exact features, and a fixed link support (None: the front end measures none)."""
 

@@ -49,6 +49,7 @@ from ._section import foreground_for as foreground_for
 from ._section import foreground_kind as foreground_kind
 from ._section import sequence_foreground as sequence_foreground
 from ._section import skin_foreground as skin_foreground
+from ._sequence import ColourSequenceBackground as ColourSequenceBackground
 from ._sequence import SequenceBackground as SequenceBackground
 from ._sides import link_sides as link_sides
 from ._sides import side_edge_share as side_edge_share
@@ -74,6 +75,6 @@ __all__ = ["Capsules", "Silhouette", "CameraNumbers", "camera_numbers", "capsule
            "as_grey", "ScoreConfig", "ImageEvidence", "ImageScore", "image_evidence", "model_contour",
            "score_silhouette", "score_frame", "score_poses", "ConfidenceConfig", "frame_confidence", "FOREGROUNDS",
            "ScoreSection", "foreground_for", "foreground_kind", "sequence_foreground", "skin_foreground",
-           "SequenceBackground", "fill_holes",
+           "SequenceBackground", "ColourSequenceBackground", "fill_holes",
            "SilhouetteTermConfig", "SilhouetteTerm",
            "SilhouettePrior", "silhouette_term", "pill_images", "roi_box", "link_sides", "side_edge_share"]

@@ -17,7 +17,7 @@ from ._foreground import (
     ThresholdForeground,
 )
 from ._score import ScoreConfig
-from ._sequence import SequenceBackground
+from ._sequence import ColourSequenceBackground, SequenceBackground
 from ._silhouette import capsules_from_model, rasterize
 
 __all__ = ["FOREGROUNDS", "ScoreSection", "foreground_for", "foreground_kind", "sequence_foreground",
@@ -100,9 +100,14 @@ class ScoreSection:
 
     @property
     def reads_colour(self) -> bool:
-        """Whether the foreground reads colour ("skin"): frame sources should then keep colour
-        (:func:`jaxhand.io.open_frames`). "auto" keeps to grey frames, and so to the threshold,
-        unless the caller opens colour frames itself."""
+        """Whether the foreground reads colour ("skin", "sequence"): frame sources should then
+        keep colour (:func:`jaxhand.io.open_frames`; grey frames stay grey). "auto" keeps to grey
+        frames, and so to the threshold, unless the caller opens colour frames itself."""
+        return self.foreground in ("skin", "sequence")
+
+    @property
+    def needs_colour(self) -> bool:
+        """Whether the foreground fails on grey frames ("skin"; "sequence" learns from either)."""
         return self.foreground == "skin"
 
 
@@ -145,10 +150,13 @@ def foreground_for(section: ScoreSection, image) -> AbstractForeground:
     raise InputError("score.foreground is 'none': no foreground model")
 
 
-def sequence_foreground(model, camera, q0, frames) -> SequenceBackground:
-    """The "sequence" foreground of one camera: a :class:`SequenceBackground` of ``frames``
-    seeded by the model's silhouette (pills and occluders) at the first frame's pose ``q0``."""
+def sequence_foreground(model, camera, q0, frames) -> SequenceBackground | ColourSequenceBackground:
+    """The "sequence" foreground of one camera: a :class:`SequenceBackground` of ``frames`` (a
+    :class:`ColourSequenceBackground` where they are in colour) seeded by the model's silhouette
+    (pills and occluders) at the first frame's pose ``q0``."""
     mask = rasterize(capsules_from_model(model, np.asarray(q0, float)), camera).mask
+    if len(frames) and _is_colour(frames[0]):
+        return ColourSequenceBackground(frames, mask)
     return SequenceBackground(frames, mask)
 
 

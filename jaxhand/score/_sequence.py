@@ -17,6 +17,10 @@ tracked model has been seen covering (the pixel matched it deep inside the model
 ``min_covered`` frames) was a hand part that stayed put, a fist over the fingers' first place, and
 is dropped.
 
+On colour frames (:class:`ColourSequenceBackground`) each of the three channels learns its own
+background so, and a pixel is foreground where any channel's test finds it: a hand and a wall of
+the same grey still differ in colour.
+
 A pixel known neither way (the palm that never moves) is foreground. A pixel differs from its
 background where its grey does by ``k`` noise levels, or where the mean squared difference over
 its 3x3 patch exceeds ``patch_level`` squared noise levels and its own exceeds one (the patch
@@ -35,7 +39,7 @@ from jaxtyping import Bool, Float
 from .._errors import InputError
 from ._foreground import AbstractForeground, _disc, _open, as_grey, fill_holes
 
-__all__ = ["SequenceBackground"]
+__all__ = ["SequenceBackground", "ColourSequenceBackground"]
 
 _AGREE = 3.0   # noise levels within which two greys count as the same (anchoring, covered modes)
 _GUESS_GREY = 32.0   # how near (grey levels) a mode must lie to the inpainted background to count double
@@ -168,3 +172,39 @@ class SequenceBackground(AbstractForeground):
         if grey.shape != self.mode.shape:
             raise InputError(f"image: expected shape {self.mode.shape} (the background's), got {grey.shape}")
         return grey
+
+
+class ColourSequenceBackground(AbstractForeground):
+    """:class:`SequenceBackground` for colour frames: one per channel (B, G, R), each learning
+    from that channel alone; a pixel is foreground where any channel's mask holds it.
+
+    Attributes:
+        channels: the three channels' :class:`SequenceBackground` (B, G, R).
+    """
+
+    def __init__(self, frames, hand_mask, **options):
+        """``frames``: (N, H, W, 3) BGR frames spread over the sequence, the first frame first;
+        ``hand_mask`` and ``options``: as for :class:`SequenceBackground`, shared by the channels."""
+        stack = [np.asarray(f) for f in frames]
+        for i, f in enumerate(stack):
+            if f.ndim != 3 or f.shape[2] != 3:
+                raise InputError(f"frames[{i}]: expected a BGR frame (H, W, 3), got shape {f.shape}; "
+                                 "grey frames take SequenceBackground")
+        self.channels = tuple(SequenceBackground([f[..., c] for f in stack], hand_mask, **options) for c in range(3))
+
+    def observe(self, image, silhouette: Bool[np.ndarray, "H W"]) -> None:
+        """Learn from a tracked frame (see :meth:`SequenceBackground.observe`)."""
+        planes = self._planes(image)
+        for channel, plane in zip(self.channels, planes):
+            channel.observe(plane, silhouette)
+
+    def mask(self, image) -> np.ndarray:
+        masks = [channel.mask(plane) for channel, plane in zip(self.channels, self._planes(image))]
+        return masks[0] | masks[1] | masks[2]
+
+    @staticmethod
+    def _planes(image) -> tuple[np.ndarray, ...]:
+        a = np.asarray(image)
+        if a.ndim != 3 or a.shape[2] != 3:
+            raise InputError(f"image: expected a BGR frame (H, W, 3) like the background's, got shape {a.shape}")
+        return tuple(np.ascontiguousarray(a[..., c]) for c in range(3))

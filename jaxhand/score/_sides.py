@@ -6,7 +6,9 @@ hand: the hand's own edges lie near its outline wherever it goes. The edge a tru
 (both sides at ``side_fractions`` of its length, those no nearer pill covers:
 :func:`~jaxhand.score._term.visible_outline`) are searched within ``side_edge_px`` along the
 side's normal for a gradient component across the side of at least ``side_edge_gradient`` grey
-levels per px; a link's share is the fraction of its points that find one (NaN without points).
+levels per px, in any colour channel of a colour frame (skin against a wall of the same grey
+still makes an edge); a link's share is the fraction of its points that find one (NaN without
+points).
 """
 
 from __future__ import annotations
@@ -39,19 +41,21 @@ def link_sides(model: Model, camera, q, fractions: tuple[float, ...]):
 def side_edge_share(image, model: Model, camera, q, config: ScoreConfig) -> np.ndarray:
     """(links,) each link's share of visible side points with an edge across the side (NaN: none
     visible), on ``image`` (grey or BGR) at pose ``q`` seen by ``camera`` (a rig camera)."""
-    grey = as_grey(image).astype(np.float32)
+    a = np.asarray(image)
+    colour = a.ndim == 3 and a.shape[2] == 3 and np.issubdtype(a.dtype, np.integer)
+    planes = (a if colour else as_grey(image)[..., None]).astype(np.float32)   # (H, W, channels): B, G, R or grey
     if config.blur_sigma_px > 0:
-        grey = cv2.GaussianBlur(grey, (0, 0), config.blur_sigma_px)
-    gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3) / 8.0   # grey levels per px
-    gy = cv2.Sobel(grey, cv2.CV_32F, 0, 1, ksize=3) / 8.0
+        planes = cv2.GaussianBlur(planes, (0, 0), config.blur_sigma_px).reshape(planes.shape)
+    gx = cv2.Sobel(planes, cv2.CV_32F, 1, 0, ksize=3).reshape(planes.shape) / 8.0   # levels per px
+    gy = cv2.Sobel(planes, cv2.CV_32F, 0, 1, ksize=3).reshape(planes.shape) / 8.0
     points, normals, visible = (np.asarray(a) for a in link_sides(model, camera, q, tuple(config.side_fractions)))
     offsets = np.arange(-config.side_edge_px, config.side_edge_px + 0.25, 0.5)
     at = points[:, None, :] + offsets[None, :, None] * normals[:, None, :]        # (m, offsets, 2)
-    height, width = grey.shape
+    height, width = planes.shape[:2]
     x, y = np.rint(at[..., 0]).astype(int), np.rint(at[..., 1]).astype(int)
     inside = (x >= 0) & (x < width) & (y >= 0) & (y < height)
     x, y = np.clip(x, 0, width - 1), np.clip(y, 0, height - 1)
-    across = np.abs(gx[y, x] * normals[:, None, 0] + gy[y, x] * normals[:, None, 1])
+    across = np.max(np.abs(gx[y, x] * normals[:, None, 0, None] + gy[y, x] * normals[:, None, 1, None]), axis=-1)
     hit = np.any(inside & (across >= config.side_edge_gradient), axis=1)
     owner = np.tile(np.repeat(np.arange(model.n_links), len(config.side_fractions)), 2)
     count = np.bincount(owner[visible], minlength=model.n_links)

@@ -76,6 +76,10 @@ class SilhouetteTermConfig:
             second object, a forearm leaving the image) is not the model's to cover. None: the
             whole image.
         roi_min_px: the least margin of that box (px).
+        cover_gate_px: beyond about this distance (px) outside every pill, a point of the
+            foreground's outline pulls less the farther it lies, and hardly at all far out: a
+            forearm, a sleeve or a second object is not the model's to cover. None: every point
+            pulls alike however far (the pseudo-Huber residual alone).
     """
 
     weight: float = 0.0
@@ -92,6 +96,7 @@ class SilhouetteTermConfig:
     canny_sigma_px: float = 1.0
     roi_margin: float | None = 0.25
     roi_min_px: float = 20.0
+    cover_gate_px: float | None = None
 
     def __post_init__(self):
         def need(cond, field, msg):
@@ -116,6 +121,8 @@ class SilhouetteTermConfig:
         need(self.roi_margin is None or self.roi_margin >= 0, "roi_margin",
              f"need a fraction >= 0 or None (the whole image), got {self.roi_margin!r}")
         need(self.roi_min_px >= 0, "roi_min_px", f"need >= 0 px, got {self.roi_min_px!r}")
+        need(self.cover_gate_px is None or self.cover_gate_px > 0, "cover_gate_px",
+             f"need > 0 px or None (off), got {self.cover_gate_px!r}")
 
     @property
     def enabled(self) -> bool:
@@ -247,6 +254,7 @@ class SilhouettePrior(eqx.Module):
             return map_coordinates(grid, [p[:, 1], p[:, 0]], order=1, mode="nearest")
 
         covered = nearest_pill_distance(t.contour, a, b, ra, rb)
+        covered = covered / jnp.sqrt(1.0 + (jax.nn.relu(covered) * t.cover_gate_inv) ** 2)   # far outside: pulls less
         pts = pill_outlines(a, b, ra, rb, t.fractions)
         blocks = [(covered, t.contour_valid, t.weight),
                   (jax.nn.relu(read(t.sdf, pts)), in_image(pts) & t.active, t.weight)]
@@ -280,6 +288,7 @@ class SilhouetteTerm(AbstractTerm):
         contour_valid: (N,) which of them are real (the rest pad to N).
         active: whether the frame's foreground was usable (else the term is all zeros).
         weight, scale_px, merit_rms_px, edge_weight: :class:`SilhouetteTermConfig`'s numbers (traced).
+        cover_gate_inv: 1 / :attr:`SilhouetteTermConfig.cover_gate_px` (0: off; traced).
         edges: (H, W) distance (px) to the nearest Canny edge pixel, or None (edges off).
         edge_fractions: :attr:`SilhouetteTermConfig.edge_fractions` (static).
     """
@@ -295,6 +304,7 @@ class SilhouetteTerm(AbstractTerm):
     scale_px: Float[Array, ""]
     merit_rms_px: Float[Array, ""]
     edge_weight: Float[Array, ""]
+    cover_gate_inv: Float[Array, ""]
     edges: Float[Array, "H W"] | None = None
     edge_fractions: tuple[float, ...] = eqx.field(static=True, default=())
 
@@ -371,5 +381,6 @@ def silhouette_term(image, foreground: AbstractForeground, camera: int, config: 
                           contour_valid=jnp.asarray(valid), active=jnp.asarray(active),
                           weight=jnp.asarray(config.weight, dtype), scale_px=jnp.asarray(config.scale_px, dtype),
                           merit_rms_px=jnp.asarray(config.merit_rms_px, dtype),
-                          edge_weight=jnp.asarray(config.edge_weight, dtype), edges=edges,
+                          edge_weight=jnp.asarray(config.edge_weight, dtype),
+                          cover_gate_inv=jnp.asarray(1.0 / (config.cover_gate_px or np.inf), dtype), edges=edges,
                           edge_fractions=tuple(float(f) for f in config.edge_fractions))

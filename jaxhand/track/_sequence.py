@@ -208,7 +208,7 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
         _check_view(model, cameras, state.q_last)
         if isinstance(frontend, ImageFrontEnd):
             _check_fit(model, cameras, sources, state.q_last)
-    if isinstance(frontend, ImageFrontEnd) and frontend.config.score.reads_colour:
+    if isinstance(frontend, ImageFrontEnd) and frontend.config.score.needs_colour:
         _check_colour(frontend.config.score, sources)
     with ResultWriter(out, model, overwrite=overwrite, resume=resume) as writer:
         resumed = None
