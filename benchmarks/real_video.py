@@ -17,11 +17,14 @@ fit shared by the runs). Runs, each from frame 0's landmark pose:
   ``--fuse-landmarks W``, for the first weight;
 - ``l``: ``r`` with the robust-limits preset instead of robust; ``lc<W>``: ``l``
   + ``--fuse-landmarks W``, for the first weight;
-- ``t``, ``tc<W>``: ``l``, ``lc<W>`` with the robust-temporal preset instead of robust-limits;
+- ``t``, ``tc<W>``: ``l``, ``lc<W>`` with the robust-temporal preset instead of robust-limits (the
+  sequence foreground reads the video in colour);
+- ``g``, ``gc<W>``: ``t``, ``tc<W>`` with ``image.silhouette_term.cover_gate_px = 10``: the arm's
+  outline, far outside every pill, stops pulling the model down it;
 - ``s``, ``sc<W>``: ``t``, ``tc<W>`` with the skin foreground fitted in the first frame
   (``image.score.foreground = "skin"``; the video is read in colour).
 
-The runs with the learned or the skin foreground (``r``, ``l``, ``t``, ``s`` and their fused runs) track
+The runs with the learned or the skin foreground (``r``, ``l``, ``t``, ``g``, ``s`` and their fused runs) track
 the calibrated model with a palm and a forearm (:func:`jaxhand.model.add_palm`): the foreground sees them.
 
 ``--scale S`` tracks the video resized by S (runs named ``<run>@S``), the camera with it
@@ -91,6 +94,10 @@ def runs(weights) -> dict[str, TrackConfig]:
     out["t"] = dataclasses.replace(temporal, landmarks=LandmarkConfig())
     if weights:
         out[f"tc{weights[0]:g}"] = dataclasses.replace(temporal, landmarks=LandmarkConfig(fuse_weight=weights[0]))
+    gated = temporal.merged({"image": {"silhouette_term": {"cover_gate_px": 10.0}}})
+    out["g"] = dataclasses.replace(gated, landmarks=LandmarkConfig())
+    if weights:
+        out[f"gc{weights[0]:g}"] = dataclasses.replace(gated, landmarks=LandmarkConfig(fuse_weight=weights[0]))
     skin = TrackConfig().preset("robust-temporal").merged({"image": {"score": {"foreground": "skin"}}})
     out["s"] = dataclasses.replace(skin, landmarks=LandmarkConfig())
     if weights:
