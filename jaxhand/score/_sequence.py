@@ -185,26 +185,22 @@ class ColourSequenceBackground(AbstractForeground):
     def __init__(self, frames, hand_mask, **options):
         """``frames``: (N, H, W, 3) BGR frames spread over the sequence, the first frame first;
         ``hand_mask`` and ``options``: as for :class:`SequenceBackground`, shared by the channels."""
-        stack = [np.asarray(f) for f in frames]
-        for i, f in enumerate(stack):
-            if f.ndim != 3 or f.shape[2] != 3:
-                raise InputError(f"frames[{i}]: expected a BGR frame (H, W, 3), got shape {f.shape}; "
-                                 "grey frames take SequenceBackground")
-        self.channels = tuple(SequenceBackground([f[..., c] for f in stack], hand_mask, **options) for c in range(3))
+        planes = [_bgr_planes(f, f"frames[{i}]") for i, f in enumerate(frames)]
+        self.channels = tuple(SequenceBackground([p[c] for p in planes], hand_mask, **options) for c in range(3))
 
     def observe(self, image, silhouette: Bool[np.ndarray, "H W"]) -> None:
         """Learn from a tracked frame (see :meth:`SequenceBackground.observe`)."""
-        planes = self._planes(image)
-        for channel, plane in zip(self.channels, planes):
+        for channel, plane in zip(self.channels, _bgr_planes(image)):
             channel.observe(plane, silhouette)
 
     def mask(self, image) -> np.ndarray:
-        masks = [channel.mask(plane) for channel, plane in zip(self.channels, self._planes(image))]
-        return masks[0] | masks[1] | masks[2]
+        return np.logical_or.reduce([c.mask(p) for c, p in zip(self.channels, _bgr_planes(image))])
 
-    @staticmethod
-    def _planes(image) -> tuple[np.ndarray, ...]:
-        a = np.asarray(image)
-        if a.ndim != 3 or a.shape[2] != 3:
-            raise InputError(f"image: expected a BGR frame (H, W, 3) like the background's, got shape {a.shape}")
-        return tuple(np.ascontiguousarray(a[..., c]) for c in range(3))
+
+def _bgr_planes(image, where: str = "image") -> tuple[np.ndarray, ...]:
+    """A BGR frame's three channels, each as its own grey image."""
+    a = np.asarray(image)
+    if a.ndim != 3 or a.shape[2] != 3:
+        raise InputError(f"{where}: expected a BGR frame (H, W, 3), got shape {a.shape}; grey frames take "
+                         "SequenceBackground")
+    return tuple(np.ascontiguousarray(a[..., c]) for c in range(3))
