@@ -193,6 +193,15 @@ def true_foregrounds(seq, folders: list[Path]) -> list[MaskForeground]:
             for source, clean_source in zip(open_frames(folders), open_frames(clean_folders))]
 
 
+def folder_foregrounds(folders: list[Path], masks: Path) -> list[MaskForeground]:
+    """The one camera's masks read from ``masks`` (one image per frame, sorted by name; any
+    pixel over 0 is the hand): a segmentation from outside, as ``jaxhand track --masks`` reads it."""
+    if len(folders) != 1:
+        raise SystemExit(f"--masks: {len(folders)} cameras; one folder of masks serves one camera only")
+    paths = sorted(p for p in masks.iterdir() if p.suffix.lower() in (".png", ".jpg", ".bmp", ".tif", ".tiff"))
+    return [MaskForeground((f.image for f in open_frames(folders)[0]), paths)]
+
+
 def degraded_copy(seq, blur_px: float, noise: float, out: Path) -> list[Path]:
     """Each camera's frames blurred by ``blur_px`` and with ``noise`` grey levels of Gaussian noise
     (:func:`jaxhand.render.degrade`; one generator over the frames in order, seeded as the dev
@@ -211,7 +220,7 @@ def degraded_copy(seq, blur_px: float, noise: float, out: Path) -> list[Path]:
 
 def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: float = 0.5, q0=None,
           per_frame: bool = False, overlays: Path | None = None, folders: list[Path] | None = None,
-          true_fg: bool = False):
+          true_fg: bool = False, masks: Path | None = None):
     m, cams = seq.model, seq.truth.cameras
     n = len(seq.truth.q) if frames is None else min(frames, len(seq.truth.q))
     if exact:
@@ -221,7 +230,8 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
             folders = [seq.folder / Path(f[0]).parent for f in seq.truth.image_files]
         images = open_frames(folders, fps=seq.truth.fps)
         frontend = image_front_end(m, cams, config.image, images, n,
-                                   foregrounds=true_foregrounds(seq, folders) if true_fg else None)
+                                   foregrounds=(true_foregrounds(seq, folders) if true_fg else
+                                                folder_foregrounds(folders, masks) if masks is not None else None))
     tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
     state = tracker.init(seq.truth.q[0] if q0 is None else q0)
     filt, raw, times, conf, lost_flags, labels, seen = [], [], [], [], [], [], []
@@ -367,6 +377,9 @@ def main(argv=None) -> None:
                    help="the image runs read the true foreground (the clean sequence's frames over "
                         f"{TRUE_FG_GREY}; for open_close_noise_clutter, open_close's) instead of their own "
                         "foreground model: what a perfect segmentation would give; recorded as <name>+true-fg")
+    p.add_argument("--masks", type=Path, default=None, metavar="DIR",
+                   help="the image runs read these masks (one image per frame, sorted by name; one camera) instead "
+                        "of their own foreground model, as jaxhand track --masks does; recorded as <name>+masks")
     add_runtime_option(p)
     args = p.parse_args(argv)
     if args.seeds < 1 or (args.seeds > 1 and not args.start_deg > 0):
@@ -386,6 +399,8 @@ def main(argv=None) -> None:
             name = f"{name}+blur{args.degrade[0]:g}+noise{args.degrade[1]:g}"
         if args.true_foreground:
             name = f"{name}+true-fg"
+        if args.masks is not None:
+            name = f"{name}+masks"
         for setting in args.settings.split(","):
             config = TrackConfig().merged(SETTINGS[setting]).merged(args.extra)
             reference = config if args.reference is None else TrackConfig().merged(SETTINGS[args.reference])
@@ -397,7 +412,7 @@ def main(argv=None) -> None:
                 used = reference if exact else config
                 r = track(seq, used, exact, args.frames, noise_px=args.reference_noise_px,
                           q0=start_pose(seq, args.start_deg, seed), per_frame=args.per_frame, overlays=where,
-                          folders=folders, true_fg=args.true_foreground)
+                          folders=folders, true_fg=args.true_foreground, masks=args.masks)
                 rec = {"sequence": name, "setting": setting, "features": "exact" if exact else "image",
                        "start_deg": args.start_deg, "seed": seed, **r, "config": config_to_dict(used)}
                 records.append(rec)

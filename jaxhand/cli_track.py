@@ -77,6 +77,11 @@ def register(sub) -> None:
                    help="a folder of foreground masks (once per camera; one image per frame, in the frames' order; "
                         "nonzero: the hand), e.g. from a segmentation network: read instead of --foreground's model "
                         "wherever a foreground is read (the silhouette term, the score, the support)")
+    p.add_argument("--mask-rim", metavar="PX|auto", default=None,
+                   help="how far (px) the foreground falls short of the hand's outline (negative: reaches beyond "
+                        "it), taken out in the silhouette term ([image.silhouette_term] rim_px); 'auto': measured "
+                        "at the initial pose, which must then be right, and written to summary.json. For masks "
+                        "eroded or grown by a segmentation network (default: the settings', 0)")
     p.add_argument("--fps", type=float, default=25.0, help="frame rate of image folders")
     p.add_argument("--scale", type=float, default=1.0,
                    help="track the frames resized by this factor in (0, 1], the cameras and --landmarks with them "
@@ -243,6 +248,15 @@ def _flag_error(flag: str, key: str, err: InputError) -> InputError:
     return InputError(f"{flag}: {msg}")
 
 
+def _mask_rim(text: str) -> float | str:
+    if text.strip() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise InputError(f"--mask-rim: expected a number of px or 'auto', got {text!r}") from None
+
+
 def track_config_from_args(args) -> TrackConfig:
     """The run's :class:`~jaxhand.TrackConfig`: ``--config`` (or the defaults), then every flag
     given on the command line on top of it."""
@@ -265,6 +279,13 @@ def track_config_from_args(args) -> TrackConfig:
         changes.setdefault("image", {})["score"] = {"foreground": args.foreground}
     if args.no_restart:
         changes.setdefault("landmarks", {})["restart"] = False
+    if args.mask_rim is not None:
+        rim = _mask_rim(args.mask_rim)
+        try:
+            config.merged({"image": {"silhouette_term": {"rim_px": rim}}})
+        except InputError as err:
+            raise _flag_error("--mask-rim", "rim_px", err) from None
+        changes.setdefault("image", {})["silhouette_term"] = {"rim_px": rim}
     if args.reacquire is not None:
         try:
             angles = [float(a) for a in args.reacquire.split(",") if a.strip()]

@@ -176,6 +176,27 @@ def test_masks_replace_the_foreground_model(index_input, tmp_path, capsys):
     assert "--masks: 2 folder(s) for 1 camera(s): give one per camera" in _one_line_error(capsys)
 
 
+def test_mask_rim_auto_measures_an_eroded_mask(index_input, tmp_path, capsys):
+    """--mask-rim auto: masks eroded by 2 px are measured about 2 px short at the initial pose and
+    summary.json says so; a word other than 'auto' is one line."""
+    folder = tmp_path / "eroded"
+    folder.mkdir()
+    for f in sorted((index_input / "frames").iterdir()):
+        m = (cv2.imread(str(f), cv2.IMREAD_GRAYSCALE) > 0).astype(np.uint8) * 255
+        cv2.imwrite(str(folder / f.name), cv2.erode(m, cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3)),
+                                                    iterations=2))
+    out = tmp_path / "o"
+    assert main(_track(index_input, "--model", "index", "--out", str(out), "--preset", "robust", "--masks",
+                       str(folder), "--mask-rim", "auto", "--max-frames", "2", "--no-video")) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    (rim,) = summary["silhouette_rim_px_measured"]
+    assert 1.5 < rim < 2.5, rim
+    assert summary["config"]["image"]["silhouette_term"]["rim_px"] == "auto"
+    assert main(_track(index_input, "--model", "index", "--out", str(out), "--preset", "robust", "--masks",
+                       str(folder), "--mask-rim", "wide", "--overwrite")) == 2
+    assert "--mask-rim: expected a number of px or 'auto', got 'wide'" in _one_line_error(capsys)
+
+
 def test_flags_are_named_in_config_errors(index_input, tmp_path, capsys):
     out = str(tmp_path / "o")
     for flags, want in ((["--steps", "0"], "--steps: expected an integer >= 1, got 0"),

@@ -2,6 +2,7 @@
 away from it, its Jacobian against finite differences, an inactive frame, its configuration,
 and the tracker carrying it (ImageConfig.silhouette_term)."""
 
+import dataclasses
 from pathlib import Path
 
 import cv2
@@ -15,7 +16,14 @@ import jaxhand as jh
 from jaxhand.image import ImageConfig
 from jaxhand.io import load_devset
 from jaxhand.kinematics import project_pose
-from jaxhand.score import SilhouetteTerm, SilhouetteTermConfig, ThresholdForeground, pill_images, silhouette_term
+from jaxhand.score import (
+    MaskForeground,
+    SilhouetteTerm,
+    SilhouetteTermConfig,
+    ThresholdForeground,
+    pill_images,
+    silhouette_term,
+)
 from jaxhand.track import ImageFrontEnd, TrackConfig, Tracker
 
 DEVSET = Path(__file__).resolve().parent.parent / "data" / "mujoco"
@@ -114,6 +122,7 @@ def test_an_empty_frame_gives_an_inactive_term(open_close):
     ("contour_points", 4, "silhouette_term.contour_points: need an int >= 8"),
     ("outline_fractions", (0.5, 1.5), "silhouette_term.outline_fractions"),
     ("max_share", 0.0, "silhouette_term.min_share/max_share"),
+    ("rim_px", "wide", "silhouette_term.rim_px: need a number of px"),
 ])
 def test_bad_settings_are_named(field, value, message):
     with pytest.raises(jh.InputError, match=message.replace(".", r"\.")):
@@ -192,3 +201,53 @@ def test_a_gated_outline_point_far_outside_the_model_hardly_pulls(open_close):
     np.testing.assert_allclose(rows[5.0][near], rows[None][near], rtol=0.05)
     with pytest.raises(jh.InputError, match=r"silhouette_term\.cover_gate_px: need > 0 px or None"):
         SilhouetteTermConfig(cover_gate_px=0.0)
+
+
+def _shifted_outline(image, grow: int) -> np.ndarray:
+    """The threshold mask of ``image`` grown (> 0) or shrunk (< 0) by ``|grow|`` px (3x3 cross)."""
+    mask = ThresholdForeground().mask(image).astype(np.uint8)
+    cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+    return (cv2.dilate(mask, cross, iterations=grow) if grow > 0 else cv2.erode(mask, cross, iterations=-grow)) > 0
+
+
+@pytest.mark.parametrize("grow", [-1, 1], ids=["shrunk", "grown"])
+def test_a_mask_a_pixel_off_the_outline_is_measured_and_taken_out(open_close, grow):
+    """A mask shrunk (grown) by a pixel, as a segmentation network's may be: at the true pose its
+    outline lies about a pixel inside (outside) the model's, which ``outline_bias_px`` measures;
+    with ``rim_px`` at minus that the pills are compared as if that much thinner (fatter), and the
+    true pose fits it about as well as the exact mask fits the pills as they are."""
+    image, q = _frame(open_close, 20), _q(open_close, 20)
+    cams = tuple(open_close.truth.cameras)
+    given = MaskForeground([image], [_shifted_outline(image, grow)])
+    plain = silhouette_term(image, given, 0, ON).bind(open_close.model, cams)
+    bias = plain.outline_bias_px(q)
+    exact = silhouette_term(image, ThresholdForeground(), 0, ON).bind(open_close.model, cams)
+    base = exact.outline_bias_px(q)   # 0.28: the threshold keeps the anti-aliased rim
+    assert abs(base) < 0.4 and abs(bias - base - grow) < 0.25, (bias, base)
+    rimmed = silhouette_term(image, given, 0, ON, rim_px=-bias).bind(open_close.model, cams)
+    assert float(rimmed.term.rim_px) == pytest.approx(-bias)
+    assert abs(rimmed.outline_bias_px(q) - bias) < 1e-9   # measured on the pills as they are
+    covered = np.asarray(rimmed.distances(q)[0][0])[np.asarray(rimmed.term.contour_valid)]
+    assert abs(float(np.median(covered))) < 0.3
+    assert float(rimmed.rms_px(q)) < 0.6 * float(plain.rms_px(q)), (float(rimmed.rms_px(q)), float(plain.rms_px(q)))
+    assert float(rimmed.rms_px(q)) < 1.5 * float(exact.rms_px(q)) + 0.1
+
+
+def test_the_front_end_measures_the_rim_at_the_first_pose_and_keeps_it(open_close):
+    """``rim_px = "auto"``: the first frame's terms are measured at the caller's pose and every
+    later frame's carry that rim; a number is used as it is and nothing is measured."""
+    m, cams = open_close.model, open_close.truth.cameras
+    frames = [_frame(open_close, k) for k in (0, 1)]
+    given = MaskForeground(frames, [_shifted_outline(f, -1) for f in frames])
+    auto = dataclasses.replace(ON, rim_px="auto")
+    fe = ImageFrontEnd(m, cams, ImageConfig(silhouette_term=auto), foregrounds=[given])
+    assert fe.rims_px is None
+    first = fe.extract([frames[0]], np.asarray(open_close.truth.q[0]), None, 0)
+    (rim,) = fe.rims_px
+    assert 0.7 < rim < 1.3 and float(first.terms[0].rim_px) == pytest.approx(rim)
+    later = fe.extract([frames[1]], np.asarray(open_close.truth.q[0]) + 0.05, None, 1)
+    assert fe.rims_px == (rim,) and float(later.terms[0].rim_px) == pytest.approx(rim)
+    half = ImageConfig(silhouette_term=dataclasses.replace(ON, rim_px=0.5))
+    fixed = ImageFrontEnd(m, cams, half, foregrounds=[given])
+    assert float(fixed.extract([frames[0]], np.asarray(open_close.truth.q[0]), None, 0).terms[0].rim_px) == 0.5
+    assert fixed.rims_px is None

@@ -80,6 +80,11 @@ class SilhouetteTermConfig:
             foreground's outline pulls less the farther it lies, and hardly at all far out: a
             forearm, a sleeve or a second object is not the model's to cover. None: every point
             pulls alike however far (the pseudo-Huber residual alone).
+        rim_px: how far (px) the foreground falls short of the hand's outline (negative: reaches
+            beyond it); the pills are compared with it as if that much thinner (fatter). A mask
+            from a segmentation network, eroded or grown by a pixel, otherwise pulls every finger
+            in depth to match its width. "auto": measured once per camera at the first frame's
+            pose (:meth:`SilhouettePrior.outline_bias_px`), which must then be right. 0: as they are.
     """
 
     weight: float = 0.0
@@ -97,6 +102,7 @@ class SilhouetteTermConfig:
     roi_margin: float | None = 0.25
     roi_min_px: float = 20.0
     cover_gate_px: float | None = None
+    rim_px: float | str = 0.0
 
     def __post_init__(self):
         def need(cond, field, msg):
@@ -123,6 +129,8 @@ class SilhouetteTermConfig:
         need(self.roi_min_px >= 0, "roi_min_px", f"need >= 0 px, got {self.roi_min_px!r}")
         need(self.cover_gate_px is None or self.cover_gate_px > 0, "cover_gate_px",
              f"need > 0 px or None (off), got {self.cover_gate_px!r}")
+        need(self.rim_px == "auto" or (isinstance(self.rim_px, (int, float)) and np.isfinite(self.rim_px)), "rim_px",
+             f"need a number of px (0: off) or 'auto' (measured at the first frame's pose), got {self.rim_px!r}")
 
     @property
     def enabled(self) -> bool:
@@ -245,6 +253,7 @@ class SilhouettePrior(eqx.Module):
         t = self.term
         geometry = _pill_geometry(self.model, self.camera, q)
         a, b, ra, rb = geometry[:4]
+        ra, rb = ra - jnp.minimum(t.rim_px, 0.5 * ra), rb - jnp.minimum(t.rim_px, 0.5 * rb)   # thinner by the rim
         height, width = t.sdf.shape
 
         def in_image(p):
@@ -276,6 +285,18 @@ class SilhouettePrior(eqx.Module):
         count = sum(jnp.sum(ok) for _, ok in blocks).astype(total.dtype)
         return jnp.sqrt(total / jnp.maximum(count, 1.0))   # Guard: an inactive term gives 0, not NaN
 
+    def outline_bias_px(self, q, reach_px: float = 3.0) -> float:
+        """The median signed distance (px) from the foreground's outline to the model's at ``q``
+        (pills as they are, whatever the term's ``rim_px``) over the outline points within
+        ``reach_px`` of it: about minus the foreground's shortfall at the hand's outline when ``q``
+        is right (0 with no such point)."""
+        unthinned = SilhouettePrior(self.model, self.camera, eqx.tree_at(lambda t: t.rim_px, self.term,
+                                                                          jnp.zeros_like(self.term.rim_px)))
+        d, ok, _ = unthinned.distances(q)[0]
+        d = np.asarray(d)[np.asarray(ok) & np.asarray(self.term.active)]
+        d = d[np.abs(d) <= reach_px]
+        return float(np.median(d)) if len(d) else 0.0
+
 
 class SilhouetteTerm(AbstractTerm):
     """One camera's foreground for one frame, unbound (arrays only, fixed shapes).
@@ -289,6 +310,7 @@ class SilhouetteTerm(AbstractTerm):
         active: whether the frame's foreground was usable (else the term is all zeros).
         weight, scale_px, merit_rms_px, edge_weight: :class:`SilhouetteTermConfig`'s numbers (traced).
         cover_gate_inv: 1 / :attr:`SilhouetteTermConfig.cover_gate_px` (0: off; traced).
+        rim_px: :attr:`SilhouetteTermConfig.rim_px` (traced).
         edges: (H, W) distance (px) to the nearest Canny edge pixel, or None (edges off).
         edge_fractions: :attr:`SilhouetteTermConfig.edge_fractions` (static).
     """
@@ -305,6 +327,7 @@ class SilhouetteTerm(AbstractTerm):
     merit_rms_px: Float[Array, ""]
     edge_weight: Float[Array, ""]
     cover_gate_inv: Float[Array, ""]
+    rim_px: Float[Array, ""]
     edges: Float[Array, "H W"] | None = None
     edge_fractions: tuple[float, ...] = eqx.field(static=True, default=())
 
@@ -345,12 +368,19 @@ def _outline_points(mask: np.ndarray, n: int, box=None) -> tuple[np.ndarray, np.
     return out, valid
 
 
+def _rim(config: SilhouetteTermConfig, rim_px: float | None) -> float:
+    if rim_px is not None:
+        return float(rim_px)
+    return 0.0 if config.rim_px == "auto" else float(config.rim_px)
+
+
 def silhouette_term(image, foreground: AbstractForeground, camera: int, config: SilhouetteTermConfig,
-                    dtype=None, box=None) -> SilhouetteTerm:
+                    dtype=None, box=None, rim_px: float | None = None) -> SilhouetteTerm:
     """A frame's :class:`SilhouetteTerm` for camera ``camera`` of the rig from its image and
     foreground model (inactive when the foreground covers less than ``config.min_share`` or
     more than ``config.max_share`` of the image); ``box`` (x0, y0, x1, y1; :func:`roi_box`)
-    limits the foreground's outline points to a region of interest."""
+    limits the foreground's outline points to a region of interest; ``rim_px`` replaces
+    ``config.rim_px`` (needed where that is "auto", which counts as 0 without it)."""
     mask = foreground.mask(image).astype(np.uint8)
     share = float(mask.mean())
     active = config.min_share <= share <= config.max_share
@@ -382,5 +412,6 @@ def silhouette_term(image, foreground: AbstractForeground, camera: int, config: 
                           weight=jnp.asarray(config.weight, dtype), scale_px=jnp.asarray(config.scale_px, dtype),
                           merit_rms_px=jnp.asarray(config.merit_rms_px, dtype),
                           edge_weight=jnp.asarray(config.edge_weight, dtype),
-                          cover_gate_inv=jnp.asarray(1.0 / (config.cover_gate_px or np.inf), dtype), edges=edges,
+                          cover_gate_inv=jnp.asarray(1.0 / (config.cover_gate_px or np.inf), dtype),
+                          rim_px=jnp.asarray(_rim(config, rim_px), dtype), edges=edges,
                           edge_fractions=tuple(float(f) for f in config.edge_fractions))

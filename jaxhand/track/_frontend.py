@@ -12,6 +12,8 @@ import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
@@ -155,6 +157,7 @@ class ImageFrontEnd(AbstractFrontEnd):
         self._cams = tuple(camera_numbers(c) for c in self.cameras) if self.config.score.enabled else ()
         self._evidence: tuple[tuple[bytes, ...], tuple] | None = None   # the last frame's, by content
         self._terms: tuple[int, tuple] | None = None   # the last frame's silhouette terms, by frame number
+        self._rims: tuple[float, ...] | None = None   # per camera, the measured rim_px where it is "auto"
 
     def extract(self, images, q_start, state: ImageState | None, frame: int) -> FrontEndResult:
         q = np.asarray(q_start)
@@ -188,9 +191,21 @@ class ImageFrontEnd(AbstractFrontEnd):
                 caps = capsules_from_model_batch(self.model, q.astype(float).reshape(1, -1))[0]
                 boxes = [roi_box(rasterize(caps, cam).mask, config.roi_margin, config.roi_min_px)
                          for cam in self._cameras()]
-            self._terms = (frame, tuple(silhouette_term(im, self._foreground(section, c, im), c, config, box=box)
-                                        for c, (im, box) in enumerate(zip(images, boxes))))
+            rims = self._rims or (None,) * len(images)
+            terms = tuple(silhouette_term(im, self._foreground(section, c, im), c, config, box=box, rim_px=rim)
+                          for c, (im, box, rim) in enumerate(zip(images, boxes, rims)))
+            if config.rim_px == "auto" and self._rims is None:   # the first frame: its pose is the caller's
+                self._rims = tuple(-t.bind(self.model, self.cameras).outline_bias_px(q) for t in terms)
+                terms = tuple(eqx.tree_at(lambda t: t.rim_px, t, jnp.asarray(rim, t.rim_px.dtype))
+                              for t, rim in zip(terms, self._rims))
+            self._terms = (frame, terms)
         return self._terms[1]
+
+    @property
+    def rims_px(self) -> tuple[float, ...] | None:
+        """Per camera, the ``silhouette_term.rim_px`` measured at the first frame's pose where it
+        is "auto" (None before that frame, or where it is not)."""
+        return self._rims
 
     def refresh(self, images, q, state: ImageState | None) -> ImageState | None:
         q = np.asarray(q)

@@ -490,6 +490,9 @@ def _summary(model, cameras, tracker, state, writer, out, fps, config, truth, q0
         if "seen" in cols:
             summary["seen"] = seen_summary(model, cols["seen"], q_f, q_t)
         plot_joint_angles(model, times, q_f, out / "angles.png", q_truth=q_t, q_raw=q_s, seen=cols.get("seen"))
+    rims = getattr(tracker.frontend, "rims_px", None)
+    if rims is not None:   # per camera, the silhouette term's rim_px measured at the first pose ("auto")
+        summary["silhouette_rim_px_measured"] = [float(r) for r in rims]
     radius = state.frontend_state.radius_mm if isinstance(state.frontend_state, ImageState) else None
     if radius is not None:   # the front end's phalanx width estimate (ImageConfig.width_gain)
         summary["link_radius_mm_estimated"] = dict(zip(model.link_names, np.asarray(radius, float).tolist()))
