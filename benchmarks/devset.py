@@ -44,6 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import REPO, RESULTS, add_runtime_option, apply_runtime, environment, format_table, write_json  # noqa: E402
 
+from jaxhand.cli_track import given_masks  # noqa: E402
 from jaxhand.io import load_devset, open_frames  # noqa: E402
 from jaxhand.kinematics import project_pose  # noqa: E402
 from jaxhand.render import degrade  # noqa: E402
@@ -193,15 +194,6 @@ def true_foregrounds(seq, folders: list[Path]) -> list[MaskForeground]:
             for source, clean_source in zip(open_frames(folders), open_frames(clean_folders))]
 
 
-def folder_foregrounds(folders: list[Path], masks: Path) -> list[MaskForeground]:
-    """The one camera's masks read from ``masks`` (one image per frame, sorted by name; any
-    pixel over 0 is the hand): a segmentation from outside, as ``jaxhand track --masks`` reads it."""
-    if len(folders) != 1:
-        raise SystemExit(f"--masks: {len(folders)} cameras; one folder of masks serves one camera only")
-    paths = sorted(p for p in masks.iterdir() if p.suffix.lower() in (".png", ".jpg", ".bmp", ".tif", ".tiff"))
-    return [MaskForeground((f.image for f in open_frames(folders)[0]), paths)]
-
-
 def degraded_copy(seq, blur_px: float, noise: float, out: Path) -> list[Path]:
     """Each camera's frames blurred by ``blur_px`` and with ``noise`` grey levels of Gaussian noise
     (:func:`jaxhand.render.degrade`; one generator over the frames in order, seeded as the dev
@@ -229,9 +221,12 @@ def track(seq, config: TrackConfig, exact: bool, frames: int | None, noise_px: f
         if folders is None:
             folders = [seq.folder / Path(f[0]).parent for f in seq.truth.image_files]
         images = open_frames(folders, fps=seq.truth.fps)
-        frontend = image_front_end(m, cams, config.image, images, n,
-                                   foregrounds=(true_foregrounds(seq, folders) if true_fg else
-                                                folder_foregrounds(folders, masks) if masks is not None else None))
+        given = None
+        if true_fg:
+            given = true_foregrounds(seq, folders)
+        elif masks is not None:   # as jaxhand track --masks reads them (one camera)
+            given = given_masks([masks], open_frames(folders))
+        frontend = image_front_end(m, cams, config.image, images, n, foregrounds=given)
     tracker = Tracker(m, cams, frontend, config, dt_s=1 / seq.truth.fps)
     state = tracker.init(seq.truth.q[0] if q0 is None else q0)
     filt, raw, times, conf, lost_flags, labels, seen = [], [], [], [], [], [], []
