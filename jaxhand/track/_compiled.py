@@ -160,9 +160,10 @@ class _Priors(eqx.Module):
     def at(self, model: Model, rig: tuple, feats: tuple, q_pred, q_start, fractions, measured: tuple = ()) -> tuple:
         """The priors of one frame: the temporal prior around ``q_pred`` and the thumb's rest
         prior, each information-weighted by the features (with the front end's weights) and the
-        frame's ``measured`` terms (bound priors of image measurements, e.g. the silhouette) at
-        ``q_start`` when :attr:`information_ratio` is set: what a term sees (a finger's length)
-        is the image's to say, as far as :attr:`information_terms` counts it."""
+        frame's ``measured`` terms (bound priors of measurements: the silhouette, fused landmarks)
+        at ``q_start`` when :attr:`information_ratio` is set: what a term sees (a finger's length,
+        a folded thumb's landmarks) is the measurement's to say, as far as
+        :attr:`information_terms` counts it."""
         weighted = [(self.temporal_weight, q_pred), (self.rest_weight, self.rest_pose)]
         weighted = [(w, centre) for w, centre in weighted if w is not None]
         if not weighted:
@@ -278,8 +279,7 @@ def solve_frame(model: Model, rig: tuple, feats: tuple, q_pred, q_start, build, 
     # the information of the front end's own weights: the gate would shrink it wherever the
     # prediction is off, and so hold the solve back exactly where it has to move
     bound = tuple(term.bind(model, rig) for term in terms)
-    frame_priors = () if priors is None else priors.at(model, rig, feats, q_pred, q_start, fractions,
-                                                        tuple(b for b, t in zip(bound, terms) if t.judged))
+    frame_priors = () if priors is None else priors.at(model, rig, feats, q_pred, q_start, fractions, bound)
     frame_priors = frame_priors + bound
     result = robust_solve(model, rig, feats, q_start, build, fit_config, numbers.robust_scale_px, passes,
                           numbers.gate_scale_px, frame_priors)

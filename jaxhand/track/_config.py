@@ -190,8 +190,8 @@ class PriorConfig:
             along a direction in q that the images see with ``l`` times the prior's information its
             weight is ``ratio / (ratio + l)`` of the full one (0: the fixed sigmas everywhere).
         information_terms: traced, unitless. The share of the frame's measured terms' information
-            (the silhouette's) that counts in that weighting beside the features' (1: all of it;
-            0: the features' alone, so a direction only the silhouette sees keeps the prior).
+            (the silhouette's, fused landmarks') that counts in that weighting beside the features'
+            (1: all of it; 0: the features' alone, so a direction only those terms see keeps the prior).
         temporal_merit: traced, unitless. With several starts (``hypotheses``), each start's merit
             also counts its pose's fixed-sigma temporal residuals ``(q - q_pred) / sigma`` times this,
             beside the feature residuals (:func:`~jaxhand.track._hypotheses.image_merit`): the choice
