@@ -4,6 +4,7 @@ LandmarkFileError (one line naming the file), never another exception."""
 import json
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -53,3 +54,23 @@ def test_any_json_loads_or_raises_landmark_file_error(tmp_path, data):
     path = tmp_path / "points.json"
     path.write_text(json.dumps(data))
     _loads_or_says_why(path)
+
+
+_ONE_HAND = [{"frame": 0, "hands": [{"landmarks_px": [[10.0, 20.0]] * 21}]}]
+
+
+@pytest.mark.parametrize("data, message", [
+    ({"frames": [{"frame": None}]}, r"frames\[0\]: frame: expected a whole number, got None"),
+    ({"frames": [{"frame": "wrist"}]}, r"frames\[0\]: frame: expected a whole number, got 'wrist'"),
+    ({"frames": [{"frame": 0, "hands": 1.0}]}, r"frame 0: 'hands' must be a list of objects"),
+    ({"frames": [{"frame": 0, "hands": [{"landmarks_px": [[1, "x"]] * 21}]}]},
+     r"frame 0: hand 0: expected 21 landmarks of \(x, y\[, z\]\), NaN where missing, got none"),
+    ({"frames": _ONE_HAND, "summary": {"size": [640]}}, r"summary.size: expected \[width, height\], got \[640\]"),
+    ({"frames": _ONE_HAND, "summary": {"fps": "30"}}, r"summary.fps: expected a frame rate > 0, got '30'"),
+])
+def test_malformed_mediapipe_entries_are_one_line_errors(tmp_path, data, message):
+    """Entries the property test above once found raising TypeError or ValueError instead."""
+    path = tmp_path / "hand.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(LandmarkFileError, match=message):
+        load_landmarks(path)

@@ -228,10 +228,54 @@ def _load_plain_json(data: dict, path: Path) -> LandmarkSequence:
     notes: dict = {}
     seen, has_mm, has_px = _rows_to_sequence(rows, str(path), header)
     frames, px, mm, conf = _fill(seen, str(path), has_mm, has_px, notes)
-    size = data.get("image_size")
     return LandmarkSequence(frames=frames, px=px, confidence=conf, mm=mm,
-                            image_size=None if size is None else (int(size[0]), int(size[1])),
-                            fps=data.get("fps"), handedness=data.get("handedness"), notes=notes, source=path.name)
+                            image_size=_image_size(data.get("image_size"), f"{path}: image_size"),
+                            fps=_fps(data.get("fps"), f"{path}: fps"), handedness=data.get("handedness"), notes=notes,
+                            source=path.name)
+
+
+def _whole(value, where: str) -> int:
+    """A JSON whole number (a frame index, an image side), or a one-line error naming ``where``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) \
+            or float(value) != int(value):
+        raise LandmarkFileError(f"{where}: expected a whole number, got {value!r}")
+    return int(value)
+
+
+def _image_size(value, where: str) -> tuple[int, int] | None:
+    """``[width, height]`` from a file (None where it does not say), or a one-line error."""
+    if value is None:
+        return None
+    if not isinstance(value, list) or len(value) != 2:
+        raise LandmarkFileError(f"{where}: expected [width, height], got {value!r}")
+    return _whole(value[0], where), _whole(value[1], where)
+
+
+def _fps(value, where: str) -> float | None:
+    """A frame rate from a file (None where it does not say), or a one-line error."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (np.isfinite(value) and value > 0):
+        raise LandmarkFileError(f"{where}: expected a frame rate > 0, got {value!r}")
+    return float(value)
+
+
+def _score(value) -> float:
+    """A hand's detection score (0 where the file gives none or no number)."""
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value) \
+        else 0.0
+
+
+def _hand_points(hand, where: str) -> np.ndarray:
+    """One MediaPipe hand's 21 (x, y) pixels (image-corner origin), or a one-line error."""
+    try:
+        lm = np.asarray(hand.get("landmarks_px", []), dtype=float)
+    except (TypeError, ValueError):
+        lm = np.zeros((0,))
+    if lm.ndim != 2 or lm.shape[0] != N or lm.shape[1] < 2 or np.any(np.isinf(lm[:, :2])):
+        raise LandmarkFileError(f"{where}: expected {N} landmarks of (x, y[, z]), NaN where missing, got "
+                                f"{'shape ' + str(lm.shape) if lm.size else 'none'}")
+    return lm[:, :2]
 
 
 def _load_mediapipe(data: dict, path: Path) -> LandmarkSequence:
@@ -242,27 +286,26 @@ def _load_mediapipe(data: dict, path: Path) -> LandmarkSequence:
     if not isinstance(frames_in, list):
         raise LandmarkFileError(f"{path}: 'frames' must be a list")
     summary = data.get("summary", {}) or {}
+    if not isinstance(summary, dict):
+        raise LandmarkFileError(f"{path}: 'summary' must be an object")
     seen: dict[int, dict] = {}
     notes: dict = {}
     two_hands, prev, hand_labels = [], None, []
     for k, fr in enumerate(frames_in):
         if not isinstance(fr, dict) or "frame" not in fr:
             raise LandmarkFileError(f"{path}: frames[{k}]: expected an object with 'frame' and 'hands'")
-        f = int(fr["frame"])
+        f = _whole(fr["frame"], f"{path}: frames[{k}]: frame")
         hands = fr.get("hands") or []
-        arrs = []
-        for h, hand in enumerate(hands):
-            lm = np.asarray(hand.get("landmarks_px", []), dtype=float)
-            if lm.ndim != 2 or lm.shape[0] != N or lm.shape[1] < 2:
-                raise LandmarkFileError(f"{path}: frame {f}: hand {h}: expected {N} landmarks of (x, y[, z]), "
-                                        f"got shape {lm.shape}")
-            arrs.append(lm[:, :2] - 0.5)   # image-corner origin -> centre of the top-left pixel
+        if not isinstance(hands, list) or not all(isinstance(h, dict) for h in hands):
+            raise LandmarkFileError(f"{path}: frame {f}: 'hands' must be a list of objects")
+        # image-corner origin -> centre of the top-left pixel
+        arrs = [_hand_points(hand, f"{path}: frame {f}: hand {h}") - 0.5 for h, hand in enumerate(hands)]
         if not arrs:
             continue
         if len(arrs) > 1:
             two_hands.append(f)
             if prev is None:
-                best = int(np.argmax([float(h.get("score", 0.0)) for h in hands]))
+                best = int(np.argmax([_score(h.get("score")) for h in hands]))
             else:
                 best = int(np.argmin([np.nanmean(np.linalg.norm(a - prev, axis=-1)) for a in arrs]))
         else:
@@ -275,10 +318,10 @@ def _load_mediapipe(data: dict, path: Path) -> LandmarkSequence:
     frames, px, mm, conf = _fill(seen, str(path), False, True, notes)
     labels = [x for x in hand_labels if isinstance(x, str)]
     hand = max(set(labels), key=labels.count).lower() if labels else None
-    size = summary.get("size")
     return LandmarkSequence(frames=frames, px=px, confidence=conf, mm=None,
-                            image_size=None if size is None else (int(size[0]), int(size[1])),
-                            fps=summary.get("fps"), handedness=hand, notes=notes, source=path.name)
+                            image_size=_image_size(summary.get("size"), f"{path}: summary.size"),
+                            fps=_fps(summary.get("fps"), f"{path}: summary.fps"), handedness=hand, notes=notes,
+                            source=path.name)
 
 
 def load_landmarks(path: str | Path) -> LandmarkSequence:
