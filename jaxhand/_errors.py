@@ -1,6 +1,9 @@
-"""Errors raised by jaxhand at its boundaries (files, CLI arguments, user arrays)."""
+"""Errors raised by jaxhand at its boundaries (files, CLI arguments, user arrays), and the number check they share."""
 
-__all__ = ["JaxhandError", "ModelFileError", "InputError", "CameraError", "OutputExistsError", "JaxhandWarning"]
+import math
+
+__all__ = ["JaxhandError", "ModelFileError", "InputError", "CameraError", "OutputExistsError", "JaxhandWarning",
+           "finite_number"]
 
 
 class JaxhandError(Exception):
@@ -25,3 +28,9 @@ class OutputExistsError(InputError):
 
 class JaxhandWarning(UserWarning):
     """Input that is accepted but probably not what was meant (the CLI prints it as one line)."""
+
+
+def finite_number(value) -> bool:
+    """Whether ``value`` is a finite int or float (not a bool): the check of a number read from a
+    settings or data file."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)

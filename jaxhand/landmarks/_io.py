@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._errors import InputError
+from .._errors import InputError, finite_number
 from ..camera import scaled_pixels
 from ._convention import POINT_NAMES
 from ._residuals import Landmarks, make_landmarks
@@ -236,8 +236,7 @@ def _load_plain_json(data: dict, path: Path) -> LandmarkSequence:
 
 def _whole(value, where: str) -> int:
     """A JSON whole number (a frame index, an image side), or a one-line error naming ``where``."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) \
-            or float(value) != int(value):
+    if not finite_number(value) or float(value) != int(value):
         raise LandmarkFileError(f"{where}: expected a whole number, got {value!r}")
     return int(value)
 
@@ -255,15 +254,14 @@ def _fps(value, where: str) -> float | None:
     """A frame rate from a file (None where it does not say), or a one-line error."""
     if value is None:
         return None
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (np.isfinite(value) and value > 0):
+    if not (finite_number(value) and value > 0):
         raise LandmarkFileError(f"{where}: expected a frame rate > 0, got {value!r}")
     return float(value)
 
 
 def _score(value) -> float:
     """A hand's detection score (0 where the file gives none or no number)."""
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value) \
-        else 0.0
+    return float(value) if finite_number(value) else 0.0
 
 
 def _hand_points(hand, where: str) -> np.ndarray:

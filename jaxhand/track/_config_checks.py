@@ -3,16 +3,9 @@
 
 from __future__ import annotations
 
-import math
-
-from .._errors import InputError
+from .._errors import InputError, finite_number
 
 __all__ = ["need", "flag", "count", "finite_number"]
-
-
-def finite_number(value) -> bool:
-    """Whether ``value`` is a finite int or float (not a bool)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def need(ok: bool, where: str, message: str) -> None:
