@@ -64,6 +64,7 @@ from jaxhand.track import (  # noqa: E402
 )
 from jaxhand.viz import draw_view  # noqa: E402
 
+DEVSET = REPO / "data" / "mujoco"
 DEGRADE_SEED = 20240925   # the noise seed of the dev set's cluttered copy (data/mujoco/README.md)
 SEQUENCES = ("open_close", "index_over_middle", "thumb_opposition", "fast_spread", "wave_two_cameras")
 
@@ -188,7 +189,7 @@ TRUE_FG_GREY = 20
 def true_foregrounds(seq, folders: list[Path]) -> list[MaskForeground]:
     """Per camera, the true foreground of the frames read from ``folders``: the clean twin's frames
     over :data:`TRUE_FG_GREY`, matched to them by content (:class:`jaxhand.score.MaskForeground`)."""
-    clean = load_devset(REPO / "data" / "mujoco" / CLEAN_TWIN.get(seq.folder.name, seq.folder.name))
+    clean = load_devset(seq.folder.parent / CLEAN_TWIN.get(seq.folder.name, seq.folder.name))
     clean_folders = [clean.folder / Path(f[0]).parent for f in clean.truth.image_files]
     return [MaskForeground((f.image for f in source), [c.image > TRUE_FG_GREY for c in clean_source])
             for source, clean_source in zip(open_frames(folders), open_frames(clean_folders))]
@@ -338,6 +339,9 @@ def _deg(x) -> str:
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--only", default=",".join(SEQUENCES), help="comma-separated sequences")
+    p.add_argument("--root", type=Path, default=DEVSET,
+                   help="the folder holding the sequences: the dev set (default) or its held-out twin, "
+                        "data/mujoco_heldout (made after the settings were chosen; measure there, do not tune)")
     p.add_argument("--settings", default=",".join(SETTINGS), help="comma-separated settings: " + ", ".join(SETTINGS))
     p.add_argument("--frames", type=int, default=None, help="first N frames only")
     p.add_argument("--no-exact", action="store_true", help="skip the exact-feature reference")
@@ -387,7 +391,9 @@ def main(argv=None) -> None:
     rows, records = [], []
     scratch = None if args.degrade is None else tempfile.TemporaryDirectory(prefix="devset_degraded_")
     for name in args.only.split(","):
-        seq = load_devset(REPO / "data" / "mujoco" / name)
+        seq = load_devset(args.root / name)
+        if args.root.resolve() != DEVSET.resolve():
+            name = f"{args.root.name}/{name}"
         folders = None
         if scratch is not None:
             folders = degraded_copy(seq, *args.degrade, Path(scratch.name) / name)

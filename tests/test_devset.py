@@ -12,13 +12,15 @@ from jaxhand.io import load_devset, load_truth, open_frames
 from jaxhand.kinematics import pose
 
 DEVSET = Path(__file__).resolve().parents[1] / "data" / "mujoco"
+HELDOUT = DEVSET.with_name("mujoco_heldout")   # its twin, rendered after the settings were chosen
 FRAMES = {"open_close": 90, "index_over_middle": 90, "thumb_opposition": 120, "wave_two_cameras": 90,
           "open_close_noise_clutter": 90, "fast_spread": 45}
 
 
+@pytest.mark.parametrize("root", [DEVSET, HELDOUT], ids=["devset", "heldout"])
 @pytest.mark.parametrize("name", list(FRAMES))
-def test_load_devset_every_sequence(name):
-    seq = load_devset(DEVSET / name)
+def test_load_devset_every_sequence(root, name):
+    seq = load_devset(root / name)
     t = seq.truth
     n, cams = FRAMES[name], 2 if name == "wave_two_cameras" else 1
     assert seq.name == name and seq.fps == 30.0 and seq.n_frames == n and len(seq.cameras) == cams
@@ -27,7 +29,7 @@ def test_load_devset_every_sequence(name):
     assert t.point_visible.shape == (cams, n, 21) and t.point_visible.dtype == bool
     assert t.edge_visible.shape == (cams, n, 15, 2) and t.visible_fraction_excl_adjacent.shape == (cams, n, 15)
     np.testing.assert_allclose(t.time_s, np.arange(n) / 30.0, atol=1e-6)  # written with 6 decimals
-    raw = json.loads((DEVSET / name / "truth.json").read_text())
+    raw = json.loads((root / name / "truth.json").read_text())
     for i in (0, n // 2, n - 1):
         for j, q_name in enumerate(seq.model.q_names):
             assert t.q[i, j] == raw["frames"][i]["joint_angles"][q_name]
@@ -39,6 +41,16 @@ def test_load_devset_every_sequence(name):
         p_world = (t.points_cam[c] - np.asarray(cam.t)) @ np.asarray(cam.R)
         np.testing.assert_allclose(np.asarray(cam.project(p_world)[0]), t.points_px[c], atol=1e-3)
         assert cam.size == (320, 240)
+
+
+@pytest.mark.parametrize("name", list(FRAMES))
+def test_heldout_twin_has_its_own_view_and_motion(name):
+    dev, held = load_devset(DEVSET / name), load_devset(HELDOUT / name)
+    assert held.model.q_names == dev.model.q_names and held.n_frames == dev.n_frames
+    for a, b in zip(dev.cameras, held.cameras):   # another view: rotations at least 5 deg apart
+        angle = np.degrees(np.arccos(np.clip((np.trace(np.asarray(a.R).T @ np.asarray(b.R)) - 1) / 2, -1, 1)))
+        assert angle > 5.0
+    assert np.max(np.abs(held.truth.q - dev.truth.q)) > np.radians(10.0)   # another motion
 
 
 def test_devset_model_tips_land_on_the_truth_tips():
