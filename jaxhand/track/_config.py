@@ -373,8 +373,9 @@ class TrackConfig:
         flag(self.refresh_templates, "refresh_templates")
         need(not self.prior.restore_hidden_below or self.support.enabled or bool(self.hypotheses.finger_level),
              "prior.restore_hidden_below", "needs the image support to tell hidden joints: set support.enabled")
-        need(not self.hypotheses.verify_below or self.support.enabled, "hypotheses.verify_below",
-             "needs the image support to judge the fingers: set support.enabled")
+        for name in ("verify_below", "fold_passage_deg"):
+            need(not getattr(self.hypotheses, name) or self.support.enabled, f"hypotheses.{name}",
+                 "needs the image support to judge the fingers: set support.enabled")
 
     def __eq__(self, other) -> bool:   # by value: FitConfig holds arrays
         return isinstance(other, TrackConfig) and config_to_dict(self) == config_to_dict(other)

@@ -88,6 +88,16 @@ class HypothesisConfig:
             angle differs by more than this; a review that does not meet them changes nothing.
         review_margin: host, in [0, 1]. A backward estimate replaces the forward one where its
             confidence is at least the forward one's less this.
+        fold_passage_deg: host, deg. With one camera, a hinge whose estimate came towards its fold
+            (the angle at which its link lies across the viewing ray) at ``fold_passage_speed_deg``
+            per frame or faster, to within this of it, and turns back there is tried reflected across
+            the fold, with features searched around that pose and a solve without the temporal
+            prior; the reflected pose is kept unless some finger's image support drops by more than
+            ``verify_margin`` (:mod:`jaxhand.track._passage`; 0: off). The view cannot tell the two
+            sides of a fold apart; a finger opening from a fist passes through it, a lagging
+            estimate turns back.
+        fold_passage_speed_deg: host, deg per frame. How fast the hinge must have come towards its
+            fold over the three frames before.
     """
 
     flips: int = 0
@@ -117,6 +127,8 @@ class HypothesisConfig:
     review_frames: int = 30
     review_agree_deg: float = 5.0
     review_margin: float = 0.0
+    fold_passage_deg: float = 0.0
+    fold_passage_speed_deg: float = 1.5
 
     def __post_init__(self):
         for name in ("flips", "folds", "carry", "recover", "seed", "coarse_steps", "review_frames"):
@@ -124,7 +136,8 @@ class HypothesisConfig:
         for name in ("last_solve", "rest", "rest_fingers"):
             flag(getattr(self, name), f"hypotheses.{name}")
         for name in ("flip_deg", "carry_min_deg", "recover_deg", "recover_mm", "max_step_deg",
-                     "prediction_margin", "review_jump_deg", "review_agree_deg"):
+                     "prediction_margin", "review_jump_deg", "review_agree_deg", "fold_passage_deg",
+                     "fold_passage_speed_deg"):
             value = getattr(self, name)
             need(finite_number(value) and value >= 0, f"hypotheses.{name}",
                  f"expected a finite number >= 0, got {value!r}")

@@ -53,11 +53,12 @@ from ._compiled import (
 )
 from ._config import HypothesisConfig, TrackConfig
 
-__all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "image_merit", "choose", "runners_up", "recovery_starts",
-           "extra_starts", "finger_starts", "too_far", "favour_prediction", "joint_angles", "LABELS"]
+__all__ = ["HypothesisProgram", "flip_starts", "fold_starts", "fold_turns", "image_merit", "choose", "runners_up",
+           "recovery_starts", "extra_starts", "finger_starts", "too_far", "favour_prediction", "joint_angles", "LABELS"]
 
 #: The kinds of start, as :attr:`StepReport.hypothesis` names the winner's.
-LABELS = ("prediction", "flip", "fold", "last_solve", "rest", "carried", "proposal", "recover", "finger", "verify")
+LABELS = ("prediction", "flip", "fold", "last_solve", "rest", "carried", "proposal", "recover", "finger", "verify",
+          "passage")
 
 
 def _flippable(model: Model) -> np.ndarray:
@@ -103,17 +104,14 @@ def _fold_joints(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return tuple(np.array(c, int) for c in zip(*rows)) if rows else (np.zeros(0, int),) * 3
 
 
-def fold_starts(model: Model, camera, q_pred, n: int) -> Float[Array, "n nq"]:
-    """``n`` starts from ``q_pred``, each with one hinge reflected across its fold: the angle at
-    which the link it moves lies across the viewing ray. Both sides of the fold show the link
-    at nearly the same place in the image with its depth reversed (exactly so for an
-    orthographic camera and a hinge axis across the ray): the ambiguity a single view leaves
-    (Sminchisescu and Triggs 2003, kinematic jumps). The hinges closest to their fold go first;
-    a hinge whose link never lies across the ray gives the prediction itself."""
+def fold_turns(model: Model, camera, q) -> tuple[np.ndarray, Float[Array, " m"], Bool[Array, " m"]]:
+    """For every flippable hinge (:func:`_fold_joints`): its q entry, the turn (rad, signed, the
+    smaller of two) that brings the link it moves across the viewing ray at ``q`` (its fold), and
+    whether the link ever lies across the ray (else the turn is meaningless)."""
     joints, frames, links = _fold_joints(model)
-    if n == 0 or len(joints) == 0:
-        return jnp.broadcast_to(q_pred, (n,) + q_pred.shape)
-    p = pose(model, q_pred)
+    if len(joints) == 0:
+        return joints, jnp.zeros(0, q.dtype), jnp.zeros(0, bool)
+    p = pose(model, q)
     omega, origin = p.frames[frames, :3, 2], p.frames[frames, :3, 3]
     d = p.link_end[links] - p.link_start[links]
     d = d / jnp.linalg.norm(d, axis=-1, keepdims=True)
@@ -133,6 +131,19 @@ def fold_starts(model: Model, camera, q_pred, n: int) -> Float[Array, "n nq"]:
     turns = jnp.stack([phi + half, phi - half], -1)
     turns = jnp.arctan2(jnp.sin(turns), jnp.cos(turns))
     fold = jnp.take_along_axis(turns, jnp.argmin(jnp.abs(turns), -1)[:, None], -1)[:, 0]
+    return joints, fold, ok
+
+
+def fold_starts(model: Model, camera, q_pred, n: int) -> Float[Array, "n nq"]:
+    """``n`` starts from ``q_pred``, each with one hinge reflected across its fold: the angle at
+    which the link it moves lies across the viewing ray (:func:`fold_turns`). Both sides of the
+    fold show the link at nearly the same place in the image with its depth reversed (exactly so
+    for an orthographic camera and a hinge axis across the ray): the ambiguity a single view leaves
+    (Sminchisescu and Triggs 2003, kinematic jumps). The hinges closest to their fold go first;
+    a hinge whose link never lies across the ray gives the prediction itself."""
+    joints, fold, ok = fold_turns(model, camera, q_pred)
+    if n == 0 or len(joints) == 0:
+        return jnp.broadcast_to(q_pred, (n,) + q_pred.shape)
     target = jnp.clip(q_pred[joints] + 2 * fold, model.q_lower[joints], model.q_upper[joints])
     order = jnp.argsort(jnp.where(ok, jnp.abs(fold), jnp.inf))[np.arange(n) % len(joints)]
     value = jnp.where(ok[order], target[order], q_pred[jnp.asarray(joints)[order]])

@@ -38,6 +38,8 @@ class TrackState:
         unseen: per q entry, the frames in a row none of whose links had a feature line (None
             unless :attr:`PriorConfig.hold_unseen_frames`).
         q_seen: per q entry, its estimate on the last frame that measured one of its links.
+        fold_offsets: the last frames' signed offsets (deg) of each hinge from its fold, oldest
+            first (None unless :attr:`HypothesisConfig.fold_passage_deg`; :mod:`jaxhand.track._passage`).
     """
 
     ghk: GHKState
@@ -53,6 +55,7 @@ class TrackState:
     hidden: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
     unseen: np.ndarray | None = None
     q_seen: np.ndarray | None = None
+    fold_offsets: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)

@@ -13,7 +13,9 @@ Per frame k (thesis fig. 1.2):
    [0, 1] and a loss-of-track flag, lowered by the front end's image score of the estimate
    where it gives one (:func:`~jaxhand.track.judge_frame`). A failed or non-finite solve keeps
    the prediction. With :attr:`HypothesisConfig.verify_below`, a finger the image hardly
-   supports is first searched again from starts of its own (:mod:`jaxhand.track._verify`).
+   supports is first searched again from starts of its own (:mod:`jaxhand.track._verify`); with
+   :attr:`HypothesisConfig.fold_passage_deg`, a hinge that turned back at its fold is tried
+   through it (:mod:`jaxhand.track._passage`).
 
 Steps 3-5 run as one compiled program (:mod:`jaxhand.track._compiled`); the loop over frames is
 host Python.
@@ -47,10 +49,12 @@ from ._hypotheses import (
     choose,
     extra_starts,
     fold_starts,
+    fold_turns,
     joint_angles,
     runners_up,
     too_far,
 )
+from ._passage import crossed, push, turned_back
 from ._score import held_filter, judge_frame, reported_confidence
 from ._seen import SeenProgram
 from ._state import StepReport, TrackState
@@ -65,7 +69,7 @@ from ._support import (
     unexplained_confidence,
     whole_finger_confidence,
 )
-from ._verify import beats, verify_starts
+from ._verify import beats, holds, verify_starts
 
 __all__ = ["Tracker"]
 
@@ -136,11 +140,16 @@ class Tracker:
         self._seen = SeenProgram(model, self.cameras, config.fit.link_fractions)
         self._is_angle = np.asarray(model.is_angle)
         self._joint_angle = joint_angles(model)
-        # a doubtful finger's starts, each solved without the temporal prior (HypothesisConfig.verify_below)
-        self._verify_program, self._folds = (
-            (FrameProgram(model, self.cameras, config, self.theta, self.dt_s, temporal=False),
-             jax.jit(lambda q: fold_starts(model, self.cameras[0], q, model.n_q)))
-            if config.hypotheses.verify_below else (None, None))
+        # a doubtful finger's starts and a hinge tried through its fold, each solved without the
+        # temporal prior (HypothesisConfig.verify_below, fold_passage_deg; the latter with one camera)
+        hyp = config.hypotheses
+        self._passes = bool(hyp.fold_passage_deg) and len(self.cameras) == 1
+        self._verify_program = (FrameProgram(model, self.cameras, config, self.theta, self.dt_s, temporal=False)
+                                if hyp.verify_below or self._passes else None)
+        self._folds = jax.jit(lambda q: fold_starts(model, self.cameras[0], q, model.n_q)) if hyp.verify_below else None
+        self._fold_turns = jax.jit(lambda q: fold_turns(model, self.cameras[0], q)[1:]) if self._passes else None
+        self._fold_joints = (fold_turns(model, self.cameras[0], jnp.asarray(model.q_default))[0] if self._passes
+                             else None)
 
     def _feature_arrays(self, features) -> tuple[tuple, ...]:
         """The front end's features as one tuple of :data:`FEATURE_FIELDS` arrays per camera,
@@ -310,15 +319,22 @@ class Tracker:
             if not out["features_ok"] or out["lost"]:  # nothing better to search around
                 break
             q_start = np.clip(q_meas, self._lower, self._upper)
-        t_verify, measured = None, None
+        t_verify, measured, folds = None, None, state.fold_offsets
         if self._verify_program is not None and out["features_ok"] and not out["lost"]:
             t0 = time.perf_counter()
             measured = self._support(images, filtered, fe_state)
-            found = self._verify(images, state, ghk, filtered, measured, fe_state, frame, terms)
+            found = (self._verify(images, state, ghk, filtered, measured, fe_state, frame, terms)
+                     if self.config.hypotheses.verify_below else None)
             if found is not None:
                 (q_meas, filtered, out, ghk_next, fe_state, extracted), measured = found, None
                 feats = self._feature_arrays(extracted.features)
                 picked = dataclasses.replace(picked, label="verify")
+            if self._passes:
+                found, folds = self._passage(images, state, ghk, filtered, measured, fe_state, frame, terms)
+                if found is not None:
+                    (q_meas, filtered, out, ghk_next, fe_state, extracted), measured = found, None
+                    feats = self._feature_arrays(extracted.features)
+                    picked = dataclasses.replace(picked, label="passage")
             t_verify = time.perf_counter() - t0
         if not out["features_ok"]:
             raise_on_values(tuple(extracted.features))   # raises, naming camera and field
@@ -369,7 +385,8 @@ class Tracker:
                           q_solved=q_meas, carried=picked.carried, lost=lost, weak_finger=weak,
                           confidence=confidence, hidden=hidden,
                           q_trusted=filtered if confidence >= self.config.prior.restore_hidden_below
-                          else state.q_trusted, unseen=unseen, q_seen=q_seen), report
+                          else state.q_trusted, unseen=unseen, q_seen=q_seen,
+                          fold_offsets=None if lost else folds), report
 
     def _verify(self, images, state: TrackState, ghk: tuple, q: np.ndarray, measured: tuple, fe_state, frame: int,
                 terms: tuple):
@@ -401,6 +418,46 @@ class Tracker:
                 ghk_next = (x, v.at[joints].set(0.0), a.at[joints].set(0.0))
                 best, best_value = (q_meas, filtered, out, ghk_next, extracted.state, extracted), min(found.values())
         return best
+
+    def _passage(self, images, state: TrackState, ghk: tuple, q: np.ndarray, measured: tuple | None, fe_state,
+                 frame: int, terms: tuple):
+        """The estimate ``q`` with each hinge that turned back at its fold reflected across it
+        (:mod:`jaxhand.track._passage`; nearest its fold first), searched and solved from there,
+        each kept where the solve stays beyond the fold and no finger's support (``measured``:
+        :meth:`_support` of ``q``, None: measured here) drops by more than ``verify_margin``: as
+        :meth:`_verify`'s result, or None where none was kept; and the fold offsets to carry on.
+        The filter forgets the velocity of the hinges passed."""
+        hyp = self.config.hypotheses
+        fold, ok = (np.asarray(a) for a in jax.device_get(self._fold_turns(jnp.asarray(q, self._dtype))))
+        history = push(state.fold_offsets, np.where(ok, -np.degrees(fold), np.nan))
+        back = np.flatnonzero(turned_back(history, hyp.fold_passage_deg, hyp.fold_passage_speed_deg))
+        best, passed = None, []
+        fingers = None
+        for i in back[np.argsort(np.abs(history[-1, back]))]:
+            history[:, i] = np.nan   # not judged again until the window has refilled
+            if fingers is None:
+                fingers = (self._support(images, q, fe_state) if measured is None else measured)[1]
+            joint = self._fold_joints[i]
+            q0 = np.asarray(q, float).copy()
+            q0[joint] = np.clip(q0[joint] + 2 * fold[i], self._lower[joint], self._upper[joint])
+            extracted = self.frontend.extract(images, q0, fe_state, frame)
+            feats = self._feature_arrays(extracted.features)
+            (q_meas, filtered, scalars), (x, v, a) = self._verify_program(feats, ghk, state.q_last, q0,
+                                                                           tuple(extracted.terms) + tuple(terms))
+            q_meas, filtered, scalars = jax.device_get((q_meas, filtered, scalars))
+            out = dict(zip(SCALARS, scalars.tolist()))
+            if not (out["features_ok"] and out["solved_ok"]) or out["lost"] or not crossed(q[joint], fold[i],
+                                                                                          q_meas[joint]):
+                continue
+            found = self._support(images, q_meas, extracted.state)[1]
+            if not holds(found, fingers, hyp.verify_margin):
+                continue
+            passed.append(joint)
+            idx = np.asarray(passed)
+            best = (q_meas, filtered, out, (x, v.at[idx].set(0.0), a.at[idx].set(0.0)), extracted.state,
+                    extracted)
+            q, fingers = np.asarray(filtered), found
+        return best, history
 
     def _unseen(self, state: TrackState, features, q) -> tuple[np.ndarray, np.ndarray]:
         """Per q entry, the frames in a row none of whose moved links had a feature line, and its

@@ -14,7 +14,7 @@ import numpy as np
 
 from ._hypotheses import finger_starts
 
-__all__ = ["verify_starts", "fold_rows", "beats"]
+__all__ = ["verify_starts", "fold_rows", "beats", "holds"]
 
 
 def fold_rows(folds: np.ndarray, q: np.ndarray, joints: np.ndarray) -> np.ndarray:
@@ -43,8 +43,12 @@ def beats(candidate: dict[int, float], current: dict[int, float], margin: float)
     """Whether the finger supports ``candidate`` beat ``current``: its weakest finger is supported
     more, by at least ``margin``, than the weakest of ``current``, and no finger that both judge
     loses more than ``margin``."""
+    return holds(candidate, current, margin) and min(candidate.values()) >= min(current.values()) + margin
+
+
+def holds(candidate: dict[int, float], current: dict[int, float], margin: float) -> bool:
+    """Whether the finger supports ``candidate`` hold up against ``current``: no finger that both
+    judge loses more than ``margin`` (a pose the image cannot tell from the current one)."""
     if not candidate or not current:
         return False
-    shared = [f for f in current if f in candidate]
-    return (min(candidate.values()) >= min(current.values()) + margin
-            and all(candidate[f] >= current[f] - margin for f in shared))
+    return all(candidate[f] >= current[f] - margin for f in current if f in candidate)
