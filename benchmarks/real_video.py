@@ -120,10 +120,10 @@ def main() -> None:
     args = ap.parse_args()
     weights = [float(w) for w in args.weights.split(",") if w]
     todo = runs(weights)
-    if args.extra:
-        todo = {k: v.merged(json.loads(args.extra)) for k, v in todo.items()}
     if args.runs:
         todo = {k: v for k, v in todo.items() if k in args.runs.split(",")}
+    if args.extra:   # merged over the chosen runs only: a change for the robust ones need not fit the others
+        todo = {k: v.merged(json.loads(args.extra)) for k, v in todo.items()}
     load0 = load_average()
     model, camera, poses = calibrated_poses(args.frames)
     print(f"calibration + landmark poses: {poses.fit_s:.0f} s, median {poses.median_px:.2f} px")
