@@ -50,7 +50,11 @@ __all__ = ["PRESETS"]
 #: another start 15 deg or more from the prediction, the frames before it are tracked again
 #: backward (``hypotheses.review_jump_deg``): fingers opening towards the camera had followed the
 #: wrong side of their fold for six frames before the rest start found the right one
-#: (benchmarks/README.md, 2026-12-06, fourth session).
+#: (benchmarks/README.md, 2026-12-06, fourth session). With one camera, a hinge whose estimate
+#: came fast to within 12 deg of its fold and turned back there is tried reflected across it
+#: (``hypotheses.fold_passage_deg``): a finger opening from a fist passes through the angle one
+#: view cannot follow, a lagging estimate turned back and followed the mirror image out
+#: (benchmarks/README.md, 2026-12-07, eleventh session).
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -76,7 +80,8 @@ PRESETS["robust-temporal"] = {**PRESETS["robust-limits"],
                                         "temporal_sigma_mm": 10.0, "information_ratio": 1.0, "temporal_merit": 0.1,
                                         "restore_hidden_below": 0.5, "thumb_rest_sigma_deg": 20.0},
                               "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "prediction_margin": 0.05,
-                                             "verify_below": 0.5, "review_jump_deg": 15.0},
+                                             "verify_below": 0.5, "review_jump_deg": 15.0,
+                                             "fold_passage_deg": 12.0},
                               "support": {**PRESETS["robust-limits"]["support"], "whole_lost": 0.5, "whole_good": 0.8},
                               "loss": {**PRESETS["robust-limits"]["loss"], "doubt_level": 0.8},
                               "filter": {**PRESETS["robust-limits"]["filter"], "velocity_gain": 1.0},
