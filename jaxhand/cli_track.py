@@ -258,11 +258,12 @@ def _mask_rim(text: str) -> float | str:
 
 
 def track_config_from_args(args) -> TrackConfig:
-    """The run's :class:`~jaxhand.TrackConfig`: ``--config`` (or the defaults), then every flag
-    given on the command line on top of it."""
-    config = load_track_config(args.config) if args.config else TrackConfig()
-    if args.preset:
-        config = config.preset(args.preset)
+    """The run's :class:`~jaxhand.TrackConfig`: ``--config`` (or the defaults) with ``--preset``
+    on top, checked together, then every flag given on the command line on top of that."""
+    if args.config:
+        config = load_track_config(args.config, args.preset)
+    else:
+        config = TrackConfig().preset(args.preset) if args.preset else TrackConfig()
     changes: dict = {}
     for attr, flag, section, key in _FLAG_FIELDS:
         value = getattr(args, attr)

@@ -89,6 +89,14 @@ def test_track_flags_override_the_config_file_and_help_shows_the_defaults(tmp_pa
                                            "--foreground", "sequence", "--method", "gaussian"]))
     assert config.image.score.foreground == "sequence" and config.image.method == "gaussian"
     assert config.image.silhouette_term.weight == 0.5   # the preset's, kept
+    # a file may lean on the preset: the passage needs the support the preset turns on
+    (tmp_path / "lean.toml").write_text("[hypotheses]\nfold_passage_deg = 8.0\nfold_passage_speed_deg = 2.0\n")
+    config = track_config_from_args(parse(["track", "x", "--out", "o", "--config", str(tmp_path / "lean.toml"),
+                                           "--preset", "robust-temporal"]))
+    assert config.hypotheses.fold_passage_deg == 12.0 and config.support.enabled   # the preset's, on top
+    assert config.hypotheses.fold_passage_speed_deg == 2.0                          # the file's
+    with pytest.raises(jh.InputError, match=r"lean.toml: hypotheses.fold_passage_deg: needs the image support"):
+        track_config_from_args(parse(["track", "x", "--out", "o", "--config", str(tmp_path / "lean.toml")]))
     (tmp_path / "bad.toml").write_text("format_version = 1\n[filter]\ntheta_rat_hz = 10\n")
     assert main(["track", "x", "--out", "o", "--config", str(tmp_path / "bad.toml"), "--model", "index",
                  "--camera", "c.json"]) == 2

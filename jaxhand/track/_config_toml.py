@@ -9,7 +9,9 @@ from pathlib import Path
 from typing import Any
 
 from .._errors import InputError
-from ._config import TrackConfig, config_from_dict, config_to_dict
+from ._config import TrackConfig, _merge, config_from_dict, config_to_dict
+from ._config_checks import need
+from ._presets import PRESETS
 
 __all__ = ["config_to_toml", "save_track_config", "load_track_config"]
 
@@ -47,8 +49,10 @@ def save_track_config(config: TrackConfig, path: str | Path) -> None:
     Path(path).write_text(config_to_toml(config))
 
 
-def load_track_config(path: str | Path) -> TrackConfig:
-    """Read a TOML tracking config (missing keys keep their defaults).
+def load_track_config(path: str | Path, preset: str | None = None) -> TrackConfig:
+    """Read a TOML tracking config (missing keys keep their defaults), with the named
+    :data:`~jaxhand.track.PRESETS` entry on top when ``preset`` is given. The two are checked
+    together, so a file may lean on the preset (a setting that needs the preset's ``support``).
 
     Raises:
         InputError: naming the file and the key (unknown keys with a "did you mean" hint).
@@ -58,6 +62,9 @@ def load_track_config(path: str | Path) -> TrackConfig:
         data: dict[str, Any] = tomllib.loads(path.read_text())
     except (OSError, tomllib.TOMLDecodeError) as err:
         raise InputError(f"{path}: {err}") from err
+    if preset is not None:
+        need(preset in PRESETS, "preset", f"unknown preset {preset!r}; valid: {', '.join(PRESETS)}")
+        data = _merge(data, PRESETS[preset])
     try:
         return config_from_dict(data)
     except InputError as err:
