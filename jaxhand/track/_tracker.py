@@ -342,7 +342,7 @@ class Tracker:
         ok, lost = bool(out["solved_ok"]), bool(out["lost"])
         t3 = time.perf_counter()
         timings = {"features": t_features, "solve": t_solve, "filter": t3 - t2 - (t_verify or 0.0)}
-        if t_verify is not None:   # the doubtful finger's searches and solves, and its support
+        if t_verify is not None:   # the doubtful finger's and the passages' searches and solves, and their support
             timings["verify"] = t_verify
         confidence, lost, image_score, reference = judge_frame(self.frontend, images, filtered, fe_state,
                                                                out["confidence"], lost, self.config.loss,
@@ -431,8 +431,7 @@ class Tracker:
         fold, ok = (np.asarray(a) for a in jax.device_get(self._fold_turns(jnp.asarray(q, self._dtype))))
         history = push(state.fold_offsets, np.where(ok, -np.degrees(fold), np.nan))
         back = np.flatnonzero(turned_back(history, hyp.fold_passage_deg, hyp.fold_passage_speed_deg))
-        best, passed = None, []
-        fingers = None
+        best, passed, fingers = None, [], None
         for i in back[np.argsort(np.abs(history[-1, back]))]:
             history[:, i] = np.nan   # not judged again until the window has refilled
             if fingers is None:
