@@ -388,6 +388,23 @@ class Tracker:
                           else state.q_trusted, unseen=unseen, q_seen=q_seen,
                           fold_offsets=None if lost else folds), report
 
+    def _search_from(self, images, q0: np.ndarray, fe_state, frame: int, ghk: tuple, state: TrackState,
+                     terms: tuple):
+        """Features searched around ``q0`` and a solve from there without the temporal prior (a
+        doubtful finger's start, a passage): ``(q_solved, q_filtered, scalars, filter state,
+        extraction)``, the filter state left on the device."""
+        extracted = self.frontend.extract(images, q0, fe_state, frame)
+        feats = self._feature_arrays(extracted.features)
+        (q_meas, filtered, scalars), ghk_next = self._verify_program(feats, ghk, state.q_last, q0,
+                                                                     tuple(extracted.terms) + tuple(terms))
+        q_meas, filtered, scalars = jax.device_get((q_meas, filtered, scalars))
+        return q_meas, filtered, dict(zip(SCALARS, scalars.tolist())), ghk_next, extracted
+
+    @staticmethod
+    def _usable(out: dict) -> bool:
+        """Whether a frame program's scalars say its features and solve are good and it is not lost."""
+        return bool(out["features_ok"] and out["solved_ok"]) and not out["lost"]
+
     def _verify(self, images, state: TrackState, ghk: tuple, q: np.ndarray, measured: tuple, fe_state, frame: int,
                 terms: tuple):
         """The best of the doubtful finger's starts (:mod:`jaxhand.track._verify`), each with its own
@@ -405,13 +422,9 @@ class Tracker:
         starts = verify_starts(q, joints, hyp.finger_deg, self._lower, self._upper, folds, state.q_trusted)
         best, best_value = None, -np.inf
         for q0 in starts:
-            extracted = self.frontend.extract(images, q0, fe_state, frame)
-            feats = self._feature_arrays(extracted.features)
-            (q_meas, filtered, scalars), (x, v, a) = self._verify_program(feats, ghk, state.q_last, q0,
-                                                                           tuple(extracted.terms) + tuple(terms))
-            q_meas, filtered, scalars = jax.device_get((q_meas, filtered, scalars))
-            out = dict(zip(SCALARS, scalars.tolist()))
-            if not (out["features_ok"] and out["solved_ok"]) or out["lost"]:
+            q_meas, filtered, out, (x, v, a), extracted = self._search_from(images, q0, fe_state, frame, ghk,
+                                                                             state, terms)
+            if not self._usable(out):
                 continue
             found = self._support(images, q_meas, extracted.state)[1]
             if beats(found, fingers, hyp.verify_margin) and min(found.values()) > best_value:
@@ -439,14 +452,9 @@ class Tracker:
             joint = self._fold_joints[i]
             q0 = np.asarray(q, float).copy()
             q0[joint] = np.clip(q0[joint] + 2 * fold[i], self._lower[joint], self._upper[joint])
-            extracted = self.frontend.extract(images, q0, fe_state, frame)
-            feats = self._feature_arrays(extracted.features)
-            (q_meas, filtered, scalars), (x, v, a) = self._verify_program(feats, ghk, state.q_last, q0,
-                                                                           tuple(extracted.terms) + tuple(terms))
-            q_meas, filtered, scalars = jax.device_get((q_meas, filtered, scalars))
-            out = dict(zip(SCALARS, scalars.tolist()))
-            if not (out["features_ok"] and out["solved_ok"]) or out["lost"] or not crossed(q[joint], fold[i],
-                                                                                          q_meas[joint]):
+            q_meas, filtered, out, (x, v, a), extracted = self._search_from(images, q0, fe_state, frame, ghk,
+                                                                             state, terms)
+            if not (self._usable(out) and crossed(q[joint], fold[i], q_meas[joint])):
                 continue
             found = self._support(images, q_meas, extracted.state)[1]
             if not holds(found, fingers, hyp.verify_margin):
