@@ -16,7 +16,7 @@ from jaxhand.cli_track import load_truth_arg
 from jaxhand.io import FrameSource, ResultWriter, read_angles_csv
 from jaxhand.render import make_preset, render_frame
 from jaxhand.track import ExactFrontEnd, track_sequence
-from jaxhand.track._sequence import _check_fit
+from jaxhand.track._sequence import _check_background, _check_fit
 
 SIZE = (160, 120)
 
@@ -253,6 +253,29 @@ def test_cameras_in_the_wrong_order_are_warned_about(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         _check_fit(model, (a, b), [FrameSource(tmp_path / "b"), FrameSource(tmp_path / "a")], model.q_default)
+
+
+def test_the_edge_tracker_on_a_bright_background_points_to_the_robust_preset(tmp_path):
+    """The defaults read no foreground; on a first frame whose background is not dark they warn
+    once and name the preset; a dark scene, or settings that read a foreground, say nothing."""
+    model = jh.builtin_model("index")
+    cam = fit_camera(model, size=SIZE)
+    image = render_frame(model, cam, model.q_default).image
+    (tmp_path / "dark").mkdir()
+    (tmp_path / "lit").mkdir()
+    cv2.imwrite(str(tmp_path / "dark" / "f0.png"), image)
+    cv2.imwrite(str(tmp_path / "lit" / "f0.png"), 255 - image)   # a dark hand before a lit wall
+    defaults, robust = jh.TrackConfig(), jh.TrackConfig().preset("robust-temporal")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _check_background(defaults, [FrameSource(tmp_path / "dark")])
+        _check_background(robust, [FrameSource(tmp_path / "lit")])
+    with pytest.warns(jh.JaxhandWarning) as caught:
+        _check_background(defaults, [FrameSource(tmp_path / "lit")])
+    assert len(caught) == 1
+    text = str(caught[0].message)
+    assert text.startswith("input 0: the first frame's background is not dark (its darker half averages grey 95)")
+    assert "use --preset robust-temporal" in text
 
 
 # ---- runs that stop: interrupt, resume, full disk, earlier runs -----------------------------------

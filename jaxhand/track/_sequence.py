@@ -208,6 +208,8 @@ def track_sequence(model: Model, cameras, sources, q0, out_dir: str | Path, fron
         _check_view(model, cameras, state.q_last)
         if isinstance(frontend, ImageFrontEnd):
             _check_fit(model, cameras, sources, state.q_last)
+            if lm is None:
+                _check_background(config, sources)
     if isinstance(frontend, ImageFrontEnd) and frontend.config.score.needs_colour:
         _check_colour(frontend.config.score, sources)
     with ResultWriter(out, model, overwrite=overwrite, resume=resume) as writer:
@@ -257,15 +259,23 @@ def _first_images(sources) -> list | None:
 DARK_BACKGROUND_GREY = 40.0
 
 
+def _otsu(image) -> tuple[float, float] | None:
+    """Otsu's threshold of a grey uint8 frame and the mean grey of its darker class (the
+    background of a bright hand on a dark scene), or None for any other frame or a flat one."""
+    if image is None or image.ndim != 2 or image.dtype != np.uint8 or int(image.max()) == int(image.min()):
+        return None
+    level, _ = cv2.threshold(image, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    return float(level), float(image[image <= level].mean())
+
+
 def _fit_score(model: Model, cam, q, image: np.ndarray) -> float | None:
     """The share of points along the projected link axes that land on the image's foreground
     (brighter than Otsu's threshold; 0 when no point lands inside), or None when the image is
     flat or its background is not dark (:data:`DARK_BACKGROUND_GREY`)."""
-    if image is None or image.ndim != 2 or image.dtype != np.uint8 or int(image.max()) == int(image.min()):
+    otsu = _otsu(image)
+    if otsu is None or otsu[1] > DARK_BACKGROUND_GREY:
         return None
-    level, _ = cv2.threshold(image, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-    if float(image[image <= level].mean()) > DARK_BACKGROUND_GREY:
-        return None
+    level = otsu[0]
     pose = forward(model, q)
     f = np.linspace(0.15, 0.85, 5)[None, :, None]
     start, end = np.asarray(pose.link_start)[:, None], np.asarray(pose.link_end)[:, None]
@@ -297,6 +307,27 @@ def _check_fit(model: Model, cameras, sources, q) -> None:
                 "order of the cameras?") if better else ": check the camera file, the input and the initial pose"
         warnings.warn(f"camera {k}: only {own:.0%} of the model's projected link axes at the initial pose lie on "
                       f"the bright foreground of input {k}'s first frame{hint}", JaxhandWarning, stacklevel=3)
+
+
+def _check_background(config: TrackConfig, sources) -> None:
+    """Warn when settings that read no foreground (the defaults: the documents' edge tracker)
+    meet a first frame whose background is not dark: that tracker was made for a bright hand on
+    a dark scene, and on other images it slides off the fingers without knowing it."""
+    image = config.image
+    if image.silhouette_term.enabled or image.score.enabled or config.support.enabled:
+        return
+    if not all(isinstance(s, FrameSource) for s in sources):   # an iterator would lose its first frame
+        return
+    for k, frame in enumerate(_first_images(sources) or ()):
+        grey = frame if frame is None or frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        otsu = _otsu(grey)
+        if otsu is not None and otsu[1] > DARK_BACKGROUND_GREY:
+            warnings.warn(f"input {k}: the first frame's background is not dark (its darker half averages grey "
+                          f"{otsu[1]:.0f}); these settings are the documents' edge tracker, made for a hand on a "
+                          "dark background: on other images use --preset robust-temporal (add --foreground "
+                          "sequence over clutter; README: 'Which settings, and what to expect')",
+                          JaxhandWarning, stacklevel=3)
+            return
 
 
 def _check_colour(section, sources) -> None:
