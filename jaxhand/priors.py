@@ -218,8 +218,8 @@ class TemporalPrior(eqx.Module):
         return self.weight @ d if self.weight.ndim == 2 else self.weight * d
 
 
-def information_weight(weight: Float[Array, " nq"], information: Float[Array, "nq nq"], ratio
-                       ) -> Float[Array, "nq nq"]:
+def information_weight(weight: Float[Array, "*k nq"], information: Float[Array, "nq nq"], ratio
+                       ) -> Float[Array, "*k nq nq"]:
     """The weight matrix of an information-weighted :class:`TemporalPrior` (issue 13 item 5).
 
     With ``D = diag(weight)`` (1 / sigma per entry, 0 for none) and the image information
@@ -230,13 +230,17 @@ def information_weight(weight: Float[Array, " nq"], information: Float[Array, "n
     see, falling as ``ratio / l`` along those they see with information ``l`` (so the solve there
     follows the images and a well-seen joint is not held back). Returns the symmetric square root
     ``f(L)^(1/2) D`` (so ``|W d|^2 = d^T D f(L) D d``). ``ratio`` > 0, unitless.
+
+    Several priors' ``weight`` rows (shape ``(k, nq)``) give ``k`` matrices from one
+    eigen-decomposition call: under ``vmap`` jaxlib's CPU kernel splits a batch over the thread
+    pool and waits for it, so two independent batched calls can starve a two-thread pool.
     """
     weight = jnp.asarray(weight)
     s = jnp.where(weight > 0, 1.0 / jnp.where(weight > 0, weight, 1.0), 0.0)
-    lam = 0.5 * (information + information.T) * s[:, None] * s[None, :]
+    lam = 0.5 * (information + information.T) * s[..., :, None] * s[..., None, :]
     eig, vec = jnp.linalg.eigh(lam)
-    root = (vec * jnp.sqrt(ratio / (ratio + jnp.maximum(eig, 0.0)))) @ vec.T
-    return root * weight[None, :]
+    root = (vec * jnp.sqrt(ratio / (ratio + jnp.maximum(eig, 0.0)))[..., None, :]) @ jnp.swapaxes(vec, -1, -2)
+    return root * weight[..., None, :]
 
 
 def temporal_prior(model: Model, q_pred, *, sigma_deg: float = 10.0, sigma_mm: float = 20.0) -> TemporalPrior:

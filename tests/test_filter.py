@@ -1,3 +1,4 @@
+import jax
 import jax.numpy as jnp
 import numpy as np
 from hypothesis import given, settings
@@ -98,6 +99,21 @@ def test_marginal_information_by_hand():
     ref = jnp.diag(jnp.array([4.0, 2.0, 1.0, 0.0]))
     np.testing.assert_allclose(seen_share(jnp.diag(jnp.array([4.0, 1.0, 0.0, 0.0])), ref), [1.0, 0.5, 0.0, 1.0],
                                atol=1e-6)
+
+
+def test_seen_share_under_vmap_takes_one_eigh_and_matches_the_single_call():
+    rng = np.random.default_rng(2)
+    A = rng.normal(size=(3, 5, 6))
+    seen = np.asarray([1.0, 1.0, 1.0, 0.0, 1.0])   # entry 3 hidden
+    infos = jnp.asarray(A @ np.swapaxes(A, 1, 2) * np.outer(seen, seen))
+    ref = jnp.asarray(A[0] @ A[0].T)
+    batched = jax.jit(jax.vmap(lambda lam: seen_share(lam, ref)))
+    # one batched call: two independent ones can starve jaxlib's CPU thread pool
+    assert batched.lower(infos).compile().as_text().count("lapack_dsyevd") == 1
+    got = np.asarray(batched(infos))
+    for k in range(3):
+        np.testing.assert_allclose(got[k], np.asarray(seen_share(infos[k], ref)), rtol=1e-9)
+    assert got[:, 3].max() < 1e-6 and got.min() >= 0.0   # sanity: the hidden entry is unseen
 
 
 def test_damp_unseen_by_hand():

@@ -81,6 +81,39 @@ def test_information_weight_is_full_where_unseen_and_fades_where_seen():
     np.testing.assert_allclose(W.T @ W, D @ (0.5 * np.linalg.inv(0.5 * np.eye(3) + L)) @ D, atol=1e-12)
 
 
+def test_stacked_information_weights_match_one_by_one_and_take_one_eigh_under_vmap():
+    rng = np.random.default_rng(1)
+    A = rng.normal(size=(2, 4, 4))
+    infos = jnp.asarray(A @ np.swapaxes(A, 1, 2))   # two starts' information
+    ws = jnp.asarray([[2.0, 3.0, 0.0, 1.0], [0.0, 0.0, 4.0, 0.5]])   # two priors' weights
+    stacked = np.asarray(information_weight(ws, infos[0], 0.5))
+    for k in range(2):
+        np.testing.assert_allclose(stacked[k], np.asarray(information_weight(ws[k], infos[0], 0.5)), atol=1e-12)
+    # jaxlib's CPU kernel splits a batched eigh over the thread pool and blocks on it: two
+    # independent batched calls can starve a two-thread pool, so the priors of a frame share one
+    hlo = jax.jit(jax.vmap(lambda lam: information_weight(ws, lam, 0.5))).lower(infos).compile().as_text()
+    assert hlo.count("lapack_dsyevd") == 1
+
+
+def test_a_frames_priors_share_one_eigh_over_the_starts():
+    seq = make_preset("full_hand_spread_flex", frames=2, size=(160, 120))
+    m = seq.model
+    q = jnp.asarray(seq.q[0])
+    feats = tuple(features_from_pose(m, seq.cameras, q))
+    fractions = jh.FitConfig().link_fractions
+    priors = _Priors.of(m, PriorConfig(temporal_sigma_deg=10.0, information_ratio=1.0, thumb_rest_sigma_deg=20.0))
+    assert priors.rest_weight is not None   # sanity: two information-weighted priors
+    starts = jnp.stack([q, q + 0.05])
+    at = jax.vmap(lambda q0: tuple(p.weight for p in priors.at(m, seq.cameras, feats, q, q0, fractions)))
+    assert jax.jit(at).lower(starts).compile().as_text().count("lapack_dsyevd") == 1
+    temporal, rest = (np.asarray(w) for w in at(starts))
+    _, J = residuals_and_jacobian(starts[1], ResidualArgs(model=m, cameras=seq.cameras, features=feats,
+                                                          fractions=fractions))
+    for got, weight in ((temporal, priors.temporal_weight), (rest, priors.rest_weight)):
+        np.testing.assert_allclose(got[1], np.asarray(information_weight(weight, J.T @ J, 1.0)), rtol=1e-9,
+                                   atol=1e-12)
+
+
 def test_information_weight_counts_the_measured_terms_beside_the_features(problem):
     seq, _ = problem
     m, q = seq.model, jnp.asarray(seq.q[3])

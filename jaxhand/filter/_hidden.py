@@ -35,13 +35,16 @@ from ._ghk import GHKState
 __all__ = ["marginal_information", "seen_share", "damp_unseen"]
 
 
-def marginal_information(information: Float[ArrayLike, "n n"], eps) -> Float[Array, " n"]:
+def marginal_information(information: Float[ArrayLike, "*k n n"], eps) -> Float[Array, "*k n"]:
     """``1 / [(Lambda + eps I)^-1]_jj`` per entry: the information on q_j with the other entries
-    free (0 for an entry without features, up to ``eps``). ``eps`` > 0, in the units of Lambda."""
+    free (0 for an entry without features, up to ``eps``). ``eps`` > 0, in the units of Lambda.
+    A stack of matrices takes one eigen-decomposition call (see
+    :func:`jaxhand.priors.information_weight` for why that matters under ``vmap``)."""
     lam = jnp.asarray(information)
-    lam = 0.5 * (lam + lam.T)
+    lam = 0.5 * (lam + jnp.swapaxes(lam, -1, -2))
     eig, vec = jnp.linalg.eigh(lam)
-    variance = (vec**2) @ (1.0 / (jnp.maximum(eig, 0.0) + eps))   # rounding may leave eig slightly < 0
+    # rounding may leave eig slightly < 0
+    variance = jnp.sum(vec**2 / (jnp.maximum(eig, 0.0) + eps)[..., None, :], axis=-1)
     return 1.0 / variance
 
 
@@ -52,7 +55,7 @@ def seen_share(information: Float[ArrayLike, "n n"], reference: Float[ArrayLike,
     ref = jnp.asarray(reference)
     n = ref.shape[-1]
     eps = 1e-9 * (jnp.trace(ref) / n) + jnp.finfo(ref.dtype).tiny   # the scale of the reference's information
-    m, m0 = marginal_information(information, eps), marginal_information(ref, eps)
+    m, m0 = marginal_information(jnp.stack([jnp.asarray(information, ref.dtype), ref]), eps)
     # Guard: an entry the reference does not see has m0 ~ eps; the denominator stays finite
     seen = jnp.where(m0 > 1e3 * eps, m / jnp.where(m0 > 1e3 * eps, m0, 1.0), 1.0)
     return jnp.clip(seen, 0.0, 1.0)

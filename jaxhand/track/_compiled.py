@@ -175,7 +175,8 @@ class _Priors(eqx.Module):
             for term in measured:
                 J_term = jax.jacfwd(term)(q_start)
                 information = information + self.information_terms * (J_term.T @ J_term)
-            weighted = [(information_weight(w, information, self.information_ratio), centre) for w, centre in weighted]
+            roots = information_weight(jnp.stack([w for w, _ in weighted]), information, self.information_ratio)
+            weighted = [(root, centre) for root, (_, centre) in zip(roots, weighted)]
         return tuple(TemporalPrior(q_pred=centre, weight=w) for w, centre in weighted) + self.fixed
 
 
