@@ -16,8 +16,9 @@ from ._errors import InputError
 
 __all__ = ["enable_x64", "enable_single_thread_cpu", "enable_sync_dispatch", "require_x64", "x64_enabled"]
 
-#: XLA's CPU options that keep each computation on the calling thread (no Eigen or intra-op pool).
-SINGLE_THREAD_XLA_FLAGS = ("--xla_cpu_multi_thread_eigen=false", "intra_op_parallelism_threads=1")
+#: XLA's CPU option that keeps Eigen's matrix kernels on the calling thread (XLA has no flag for the
+#: intra-op pool itself, which jaxlib's LAPACK kernels still use for a large batch).
+SINGLE_THREAD_XLA_FLAGS = ("--xla_cpu_multi_thread_eigen=false",)
 
 
 def enable_x64() -> None:
@@ -35,7 +36,7 @@ def enable_sync_dispatch() -> None:
 
 
 def enable_single_thread_cpu() -> None:
-    """Keep each XLA CPU computation on one thread (adds :data:`SINGLE_THREAD_XLA_FLAGS` to
+    """Keep XLA's Eigen kernels on one thread (adds :data:`SINGLE_THREAD_XLA_FLAGS` to
     ``XLA_FLAGS``): a tracker's programs are too small to gain from a thread pool, whose hand-offs
     cost more than they save, and on one thread the results no longer depend on how the work was
     split. XLA reads the flags when JAX starts its CPU backend, so call this before the first JAX

@@ -161,13 +161,13 @@ def test_presets_apply_named_changes_and_unknown_names_are_listed():
                                       "temporal_merit": 0.0, "restore_hidden_below": 0.0,
                                       "thumb_rest_sigma_deg": 0.0},
                             "hypotheses": {"prediction_margin": 0.0, "verify_below": 0.0,
-                                           "review_jump_deg": 0.0, "fold_passage_deg": 0.0},
+                                           "review_jump_deg": 0.0, "fold_passage_deg": 0.0, "coarse_steps": 0},
                             "support": {"whole_lost": 0.0, "whole_good": 0.0}, "loss": {"doubt_level": 0.5},
                             "filter": {"velocity_gain": 0.0},
                             "image": {"search": {"zero_mean": False},
                                       "score": {"silhouette": {"side_edge_px": 0.0}}}}) == limits
     assert (temporal.hypotheses.prediction_margin, temporal.hypotheses.verify_below) == (0.05, 0.5)
-    assert temporal.hypotheses.fold_passage_deg == 12.0
+    assert (temporal.hypotheses.fold_passage_deg, temporal.hypotheses.coarse_steps) == (12.0, 2)
     assert (temporal.prior.temporal_sigma_deg, temporal.prior.information_ratio) == (15.0, 1.0)
     assert (temporal.prior.temporal_merit, temporal.prior.restore_hidden_below) == (0.1, 0.5)
     assert temporal.prior.thumb_rest_sigma_deg == 20.0

@@ -36,7 +36,7 @@ WORKER_ENV = {
     "OMP_NUM_THREADS": "1",
     "OPENBLAS_NUM_THREADS": "1",
     "MKL_NUM_THREADS": "1",
-    "XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
+    "XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false",
 }
 ERROR_FILE, LOG_FILE = "error.json", "batch.log"
 #: jax.monitoring's event for one XLA compilation (counted per job in the report).

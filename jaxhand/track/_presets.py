@@ -54,7 +54,10 @@ __all__ = ["PRESETS"]
 #: came fast to within 12 deg of its fold and turned back there is tried reflected across it
 #: (``hypotheses.fold_passage_deg``): a finger opening from a fist passes through the angle one
 #: view cannot follow, a lagging estimate turned back and followed the mirror image out
-#: (benchmarks/README.md, 2026-12-07, eleventh session).
+#: (benchmarks/README.md, 2026-12-07, eleventh session). Where the merit alone picks the start (no
+#: image score), each start runs two iterations and the best one's alone is solved in full
+#: (``hypotheses.coarse_steps`` 2): several times faster, as accurate on the dev set and held out
+#: (benchmarks/README.md, 2026-12-07, twelfth session).
 #: "coupled": the DIP-PIP coupling in every solve (``prior.dip_pip_weight`` 4/rad), so a hidden
 #: or drifting DIP follows its PIP instead of the filter's extrapolation or a stale template: no
 #: drift on benchmarks/long.py's slow path, but worse where a hand's DIP does not follow 2/3 of
@@ -81,7 +84,7 @@ PRESETS["robust-temporal"] = {**PRESETS["robust-limits"],
                                         "restore_hidden_below": 0.5, "thumb_rest_sigma_deg": 20.0},
                               "hypotheses": {**PRESETS["robust-limits"]["hypotheses"], "prediction_margin": 0.05,
                                              "verify_below": 0.5, "review_jump_deg": 15.0,
-                                             "fold_passage_deg": 12.0},
+                                             "fold_passage_deg": 12.0, "coarse_steps": 2},
                               "support": {**PRESETS["robust-limits"]["support"], "whole_lost": 0.5, "whole_good": 0.8},
                               "loss": {**PRESETS["robust-limits"]["loss"], "doubt_level": 0.8},
                               "filter": {**PRESETS["robust-limits"]["filter"], "velocity_gain": 1.0},
