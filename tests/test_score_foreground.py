@@ -1,5 +1,6 @@
 """Foreground models on synthetic frames whose foreground is known exactly."""
 
+import dataclasses
 from pathlib import Path
 
 import cv2
@@ -16,6 +17,8 @@ from jaxhand.score import (
     MaskForeground,
     ScoreSection,
     SequenceBackground,
+    Silhouette,
+    SilhouetteTermConfig,
     SkinForeground,
     ThresholdForeground,
     as_grey,
@@ -23,8 +26,11 @@ from jaxhand.score import (
     capsules_from_model,
     fill_holes,
     foreground_for,
+    image_evidence,
     rasterize,
+    score_silhouette,
     sequence_foreground,
+    silhouette_term,
     skin_foreground,
 )
 from jaxhand.track import ImageFrontEnd, image_front_end
@@ -290,6 +296,46 @@ def test_sequence_background_drops_a_mode_the_tracked_model_covers():
     assert model.mask(frames[5])[fist].mean() >= 0.4   # 20 of its 50 pixels, its outline left to the seen ones
     background, known = model.background()
     assert known[0, 0] and abs(background[0, 0] - (frames[3][0, 0] / 2 + frames[4][0, 0] / 2)) < 1e-4
+
+
+def test_a_mode_dropped_under_a_lagging_model_is_doubtful_and_left_out_of_the_scores():
+    """A tracked model that lags over the finger's first place covers background that matches the
+    learned mode, so the mode is dropped as a hand part that stayed put and those pixels turn
+    foreground. They match the mode and were never seen free: doubtful. The scores leave them out,
+    so they do not support the lagging model, and the silhouette term's outline skips them."""
+    frames, hands, _, _ = _moving_finger_frames()
+    start = np.zeros(hands[0].shape, bool)
+    start[7:18, 6:11] = True   # inside the finger's first place, away from its outline
+    model = SequenceBackground(frames, hands[0], margin_px=1)
+    for k in (1, 2):
+        model.observe(frames[k], hands[0])   # the model stays where the finger started
+    mask, doubtful = model.mask(frames[3]), model.doubtful(frames[3])
+    assert mask[start].all() and doubtful[start].all()   # foreground, by the dropped mode
+    assert not (doubtful & ~mask).any() and not doubtful[hands[3] & ~hands[0]].any()   # the finger is not doubted
+    lagging = Silhouette(mask=start, label=np.where(start, 0, -1).astype(np.int16), occluder=np.zeros(1, bool),
+                         adjacent=np.zeros((1, 1), bool), box=(5, 6, 12, 19))
+    evidence = image_evidence(frames[3], model)
+    assert evidence.doubtful is not None and evidence.doubtful[start].all()
+    trusted = score_silhouette(lagging, dataclasses.replace(evidence, doubtful=None))
+    judged = score_silhouette(lagging, evidence)
+    assert trusted.coverage == 1.0 and trusted.link_score[0] == 0.5   # sanity: the false foreground supports it
+    assert judged.coverage == 0.0 and not np.isfinite(judged.link_score[0])   # no pixel left to judge it by
+    # the term's outline points: none on the doubtful pixels' outline (the same mask, undoubted, has some)
+    near = cv2.dilate(doubtful.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+
+    def on_doubt(foreground):
+        term = silhouette_term(frames[3], foreground, 0, SilhouetteTermConfig(max_share=1.0))
+        pts = np.asarray(term.contour)[np.asarray(term.contour_valid)].round().astype(int)
+        return int(near[pts[:, 1], pts[:, 0]].sum()), len(pts)
+
+    assert on_doubt(model)[0] == 0 and on_doubt(MaskForeground([frames[3]], [mask]))[0] > 5
+    # the colour model doubts where every channel that calls a pixel foreground doubts it
+    colour = ColourSequenceBackground([np.repeat(f[..., None], 3, -1) for f in frames], hands[0], margin_px=1)
+    for k in (1, 2):
+        colour.observe(np.repeat(frames[k][..., None], 3, -1), hands[0])
+    np.testing.assert_array_equal(colour.doubtful(np.repeat(frames[3][..., None], 3, -1)), doubtful)
+    # a model that cannot doubt doubts nothing
+    assert not ThresholdForeground().doubtful(frames[3]).any()
 
 
 def test_sequence_background_keeps_a_hand_resting_beyond_the_first_silhouette():

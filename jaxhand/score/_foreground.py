@@ -70,6 +70,11 @@ class AbstractForeground(abc.ABC):
             InputError: a malformed frame (shape, dtype, size).
         """
 
+    def doubtful(self, image) -> Bool[np.ndarray, "H W"]:
+        """The pixels of :meth:`mask` whose call this model cannot make (foreground or not): the
+        scores leave them out. None here."""
+        return np.zeros(as_grey(image).shape, bool)
+
 
 def fill_holes(mask: Bool[np.ndarray, "H W"], max_px: int) -> Bool[np.ndarray, "H W"]:
     """``mask`` with every 4-connected hole of fewer than ``max_px`` pixels filled (a background

@@ -24,6 +24,10 @@ compares the model's silhouette with the image everywhere, in two independent wa
 ``score`` is the weighted mean of iou, coverage, chamfer_score and worst_link, in [0, 1] (1: the
 model covers the foreground exactly and every contour pixel lies on an image edge).
 
+Pixels the foreground model cannot call (:meth:`~jaxhand.score.AbstractForeground.doubtful`: a
+learned background's pixel that matches a mode a hand part may have taught it) count on neither
+side of the region figures and the links' coverage.
+
 The image side (foreground, edge distance) is computed once per frame by :func:`image_evidence`
 and shared by every hypothesis scored on that frame.
 """
@@ -120,11 +124,14 @@ class ImageEvidence:
         foreground: (H, W) bool foreground mask.
         edges: (H, W) bool Canny edges.
         edge_distance_px: (H, W) float32 distance of every pixel centre to the nearest edge pixel (px).
+        doubtful: (H, W) bool, foreground pixels the foreground model cannot call
+            (:meth:`~jaxhand.score.AbstractForeground.doubtful`), left out of the scores; None: none.
     """
 
     foreground: Bool[np.ndarray, "H W"]
     edges: Bool[np.ndarray, "H W"]
     edge_distance_px: Float[np.ndarray, "H W"]
+    doubtful: Bool[np.ndarray, "H W"] | None = None
 
 
 @dataclass(frozen=True)
@@ -141,7 +148,8 @@ class ImageScore:
         worst_link_index: that link's capsule index (-1 when none).
         link_score: (n,) per capsule, mean of its coverage and its contour's chamfer score (NaN
             for capsules not judged: occluders, or fewer than ``min_link_px`` visible pixels).
-        silhouette_px: pixels of the silhouette; contour_px: pixels of its contour.
+        silhouette_px: pixels of the silhouette (the doubtful ones left out); contour_px: pixels of
+            its contour.
     """
 
     score: float
@@ -177,7 +185,9 @@ def image_evidence(image, foreground: AbstractForeground | np.ndarray, config: S
     # distanceTransform measures to the nearest zero pixel: edges are the zeros.
     # The 5x5 chamfer mask is within 2 % of exact L2 and twice as fast as DIST_MASK_PRECISE.
     dist = cv2.distanceTransform(np.where(edges, 0, 255).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
-    return ImageEvidence(foreground=fg, edges=edges, edge_distance_px=dist)
+    doubtful = foreground.doubtful(image) if isinstance(foreground, AbstractForeground) else None
+    return ImageEvidence(foreground=fg, edges=edges, edge_distance_px=dist,
+                         doubtful=doubtful if doubtful is not None and doubtful.any() else None)
 
 
 def model_contour(silhouette: Silhouette, *, occluding: bool = True) -> Bool[np.ndarray, "H W"]:
@@ -233,9 +243,12 @@ def score_silhouette(silhouette: Silhouette, evidence: ImageEvidence, config: Sc
         raise InputError(f"silhouette: shape {S.shape} differs from the frame's {evidence.foreground.shape}")
     rows, cols = _roi(S, config.roi_margin_px)
     s, f = S[rows, cols], evidence.foreground[rows, cols]
+    if evidence.doubtful is not None:   # neither side's
+        known = ~evidence.doubtful[rows, cols]
+        s, f = s & known, f & known
     inter = int(np.count_nonzero(s & f))
     union = int(np.count_nonzero(s | f))
-    n_s = int(np.count_nonzero(S))
+    n_s = int(np.count_nonzero(s))   # the box holds all of S
     iou = inter / union if union else 0.0
     coverage = inter / n_s if n_s else 0.0
     box_rows, box_cols = silhouette.crop()
@@ -264,6 +277,8 @@ def _link_scores(silhouette: Silhouette, evidence: ImageEvidence, contour: np.nd
     rows, cols = silhouette.crop()
     lab = silhouette.label[rows, cols]
     inside = silhouette.mask[rows, cols]
+    if evidence.doubtful is not None:   # a doubtful pixel supports no link and counts against none
+        inside = inside & ~evidence.doubtful[rows, cols]
     ids = lab[inside]
     vis = np.bincount(ids, minlength=n)
     on = np.bincount(ids, weights=evidence.foreground[rows, cols][inside], minlength=n)

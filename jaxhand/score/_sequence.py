@@ -21,7 +21,11 @@ On colour frames (:class:`ColourSequenceBackground`) each of the three channels 
 background so, and a pixel is foreground where any channel's test finds it: a hand and a wall of
 the same grey still differ in colour.
 
-A pixel known neither way (the palm that never moves) is foreground. A pixel differs from its
+A pixel known neither way (the palm that never moves) is foreground. Where that is so only because
+its mode was dropped, was never seen free and the frame matches the mode again, it is
+:meth:`~SequenceBackground.doubtful`: a hand part that stays put and background that a lagging
+model covered (shaded like it by chance) look the same there, so the scores and the silhouette
+term's outline leave it out. A pixel differs from its
 background where its grey does by ``k`` noise levels, or where the mean squared difference over
 its 3x3 patch exceeds ``patch_level`` squared noise levels and its own exceeds one (the patch
 mask shrunk by a pixel, so it neither grows the outline nor closes a gap between fingers): a
@@ -167,6 +171,13 @@ class SequenceBackground(AbstractForeground):
             differs |= (cv2.erode(patch, _disc(1)) > 0) & (z2 > 1.0)   # a gap between fingers stays open
         return _open(fill_holes(differs | ~known, self.fill_px), self.open_px)
 
+    def doubtful(self, image) -> np.ndarray:
+        """Foreground pixels that match a dropped mode and were never seen free: a hand part
+        resting there or the background, shaded like it by chance, look alike."""
+        grey = self._grey(image).astype(np.float32)
+        dropped = self._mode_known & (self._covered >= self.min_covered) & (self._seen == 0)
+        return dropped & (np.abs(grey - self.mode) <= self.k * self.noise) & self.mask(image)
+
     def _grey(self, image) -> np.ndarray:
         grey = as_grey(image)
         if grey.shape != self.mode.shape:
@@ -195,6 +206,12 @@ class ColourSequenceBackground(AbstractForeground):
 
     def mask(self, image) -> np.ndarray:
         return np.logical_or.reduce([c.mask(p) for c, p in zip(self.channels, _bgr_planes(image))])
+
+    def doubtful(self, image) -> np.ndarray:
+        """Foreground pixels that every channel calling them foreground doubts."""
+        planes = _bgr_planes(image)
+        calls = [(c.mask(p), c.doubtful(p)) for c, p in zip(self.channels, planes)]
+        return np.logical_or.reduce([m for m, _ in calls]) & np.logical_and.reduce([d | ~m for m, d in calls])
 
 
 def _bgr_planes(image, where: str = "image") -> tuple[np.ndarray, ...]:

@@ -261,7 +261,8 @@ class ImageFrontEnd(AbstractFrontEnd):
                 share = side_edge_share(images[c], self.model, self.cameras[c], q, section.silhouette)
                 score = np.where(np.isfinite(share), np.minimum(score, share), score)   # NaN score: not judged
             links.append(score)
-            unexplained = max(unexplained, largest_unexplained_px(ev.foreground, sil.mask, margin_px))
+            fg = ev.foreground if ev.doubtful is None else ev.foreground & ~ev.doubtful
+            unexplained = max(unexplained, largest_unexplained_px(fg, sil.mask, margin_px))
         return ImageSupport(link_score=np.stack(links), unexplained_px=float(unexplained))
 
     def _section(self):
