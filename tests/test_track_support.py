@@ -114,11 +114,13 @@ def test_unexplained_foreground_is_the_largest_blob_beyond_the_margin():
     foreground = silhouette.copy()
     foreground[10:30, 20] = True            # a one-pixel rim along the outline: within the margin
     assert largest_unexplained_px(foreground, silhouette, 1) == 0
-    foreground[5:8, 30:34] = True           # a 3x4 blob away from the model
-    foreground[35, 0:30] = True             # a one-pixel line: removed by the opening
-    assert largest_unexplained_px(foreground, silhouette, 1) == 12
-    foreground[10:15, 20:25] = True         # a 5x5 blob on the outline: its first column lies in the margin
-    assert largest_unexplained_px(foreground, silhouette, 1) == 20
+    foreground[0:3, 30:34] = True           # a 3x4 blob away from the model: thinner than the opening
+    foreground[33:36, 0:30] = True          # a three-pixel band (a model 2-3 px off a finger's side): too
+    assert largest_unexplained_px(foreground, silhouette, 1) == 0
+    foreground[4:9, 30:36] = True           # a 5x6 blob away from the model
+    assert largest_unexplained_px(foreground, silhouette, 1) == 30
+    foreground[10:16, 20:27] = True         # a 6x7 blob on the outline: its first column lies in the margin
+    assert largest_unexplained_px(foreground, silhouette, 1) == 36
 
 
 def test_a_finger_bent_inside_the_foreground_loses_the_confidence(opposition):

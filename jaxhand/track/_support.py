@@ -194,12 +194,12 @@ def _ramp(value: float, lost: float, good: float) -> float:
 
 def largest_unexplained_px(foreground, silhouette, margin_px: int) -> int:
     """The area (px) of the largest 8-connected blob of ``foreground`` outside ``silhouette``
-    grown by ``margin_px``, after a 3x3 opening (slivers one pixel wide along the outline are
-    rounding, not a finger)."""
+    grown by ``margin_px``, after a 5x5 opening: a band up to 4 px wide along the outline is
+    rounding or a model a pixel or two off a finger's side, not a finger the model lacks."""
     grown = cv2.dilate(np.asarray(silhouette, np.uint8),
                        cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1, 2 * margin_px + 1)))
     outside = (np.asarray(foreground, bool) & (grown == 0)).astype(np.uint8)
-    outside = cv2.morphologyEx(outside, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    outside = cv2.morphologyEx(outside, cv2.MORPH_OPEN, np.ones((5, 5), np.uint8))
     n, _, stats, _ = cv2.connectedComponentsWithStats(outside, connectivity=8)
     return int(stats[1:, cv2.CC_STAT_AREA].max()) if n > 1 else 0
 
