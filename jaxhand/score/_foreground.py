@@ -70,9 +70,9 @@ class AbstractForeground(abc.ABC):
             InputError: a malformed frame (shape, dtype, size).
         """
 
-    def doubtful(self, image) -> Bool[np.ndarray, "H W"]:
+    def doubtful(self, image, mask=None) -> Bool[np.ndarray, "H W"]:
         """The pixels of :meth:`mask` whose call this model cannot make (foreground or not): the
-        scores leave them out. None here."""
+        scores leave them out. ``mask``: the frame's :meth:`mask`, where the caller has it. None here."""
         return np.zeros(as_grey(image).shape, bool)
 
 

@@ -185,7 +185,7 @@ def image_evidence(image, foreground: AbstractForeground | np.ndarray, config: S
     # distanceTransform measures to the nearest zero pixel: edges are the zeros.
     # The 5x5 chamfer mask is within 2 % of exact L2 and twice as fast as DIST_MASK_PRECISE.
     dist = cv2.distanceTransform(np.where(edges, 0, 255).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
-    doubtful = foreground.doubtful(image) if isinstance(foreground, AbstractForeground) else None
+    doubtful = foreground.doubtful(image, fg) if isinstance(foreground, AbstractForeground) else None
     return ImageEvidence(foreground=fg, edges=edges, edge_distance_px=dist,
                          doubtful=doubtful if doubtful is not None and doubtful.any() else None)
 

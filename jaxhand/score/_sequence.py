@@ -171,12 +171,14 @@ class SequenceBackground(AbstractForeground):
             differs |= (cv2.erode(patch, _disc(1)) > 0) & (z2 > 1.0)   # a gap between fingers stays open
         return _open(fill_holes(differs | ~known, self.fill_px), self.open_px)
 
-    def doubtful(self, image) -> np.ndarray:
+    def doubtful(self, image, mask=None) -> np.ndarray:
         """Foreground pixels that match a dropped mode and were never seen free: a hand part
-        resting there or the background, shaded like it by chance, look alike."""
+        resting there or the background, shaded like it by chance, look alike. ``mask``: the
+        frame's :meth:`mask`, where the caller has it."""
         grey = self._grey(image).astype(np.float32)
         dropped = self._mode_known & (self._covered >= self.min_covered) & (self._seen == 0)
-        return dropped & (np.abs(grey - self.mode) <= self.k * self.noise) & self.mask(image)
+        mask = self.mask(image) if mask is None else np.asarray(mask, bool)
+        return dropped & (np.abs(grey - self.mode) <= self.k * self.noise) & mask
 
     def _grey(self, image) -> np.ndarray:
         grey = as_grey(image)
@@ -207,8 +209,9 @@ class ColourSequenceBackground(AbstractForeground):
     def mask(self, image) -> np.ndarray:
         return np.logical_or.reduce([c.mask(p) for c, p in zip(self.channels, _bgr_planes(image))])
 
-    def doubtful(self, image) -> np.ndarray:
-        """Foreground pixels that every channel calling them foreground doubts."""
+    def doubtful(self, image, mask=None) -> np.ndarray:
+        """Foreground pixels that every channel calling them foreground doubts (``mask`` is not
+        needed: each channel's own is)."""
         planes = _bgr_planes(image)
         calls = [(c.mask(p), c.doubtful(p)) for c, p in zip(self.channels, planes)]
         return np.logical_or.reduce([m for m, _ in calls]) & np.logical_and.reduce([d | ~m for m, d in calls])

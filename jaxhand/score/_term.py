@@ -390,7 +390,7 @@ def silhouette_term(image, foreground: AbstractForeground, camera: int, config: 
         # the outline lies half a pixel beyond the last foreground pixel centre
         sdf = np.where(mask > 0, 0.5 - inside, outside - 0.5)
         contour, valid = _outline_points(mask * 255, config.contour_points, box)
-        doubtful = foreground.doubtful(image)
+        doubtful = foreground.doubtful(image, mask > 0)
         if doubtful.any():   # an outline through pixels the foreground cannot call pulls nothing
             near = cv2.dilate(doubtful.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
             valid &= ~near[contour[:, 1].astype(int), contour[:, 0].astype(int)]
