@@ -390,12 +390,11 @@ def silhouette_term(image, foreground: AbstractForeground, camera: int, config: 
         # the outline lies half a pixel beyond the last foreground pixel centre
         sdf = np.where(mask > 0, 0.5 - inside, outside - 0.5)
         contour, valid = _outline_points(mask * 255, config.contour_points, box)
+        rows, cols = contour[:, 1].astype(int), contour[:, 0].astype(int)
         doubtful = foreground.doubtful(image, mask > 0)
         if doubtful.any():   # an outline through pixels the foreground cannot call pulls nothing
-            near = cv2.dilate(doubtful.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
-            valid &= ~near[contour[:, 1].astype(int), contour[:, 0].astype(int)]
+            valid &= ~(cv2.dilate(doubtful.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0)[rows, cols]
         gy, gx = np.gradient(sdf)   # half a pixel outwards, onto the outline itself
-        rows, cols = contour[:, 1].astype(int), contour[:, 0].astype(int)
         g = np.stack([gx[rows, cols], gy[rows, cols]], -1)
         contour = contour + 0.5 * g / np.maximum(np.linalg.norm(g, axis=-1, keepdims=True), 1e-9)
     else:
