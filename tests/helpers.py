@@ -17,7 +17,8 @@ def fit_camera(model, q=None, size=(320, 240), R=None):
 
 
 class CompileCounter:
-    """Counts XLA compilations while active (jax.monitoring backend-compile events)."""
+    """Counts the programs JAX built while active: XLA compilations and loads from the persistent
+    compilation cache (the tests share one; tests/conftest.py), as jax.monitoring events."""
 
     _active: list = []
     _installed = False
@@ -30,7 +31,7 @@ class CompileCounter:
 
     @staticmethod
     def _listener(name, duration, **kwargs):
-        if name.endswith("backend_compile_duration"):
+        if name.endswith(("backend_compile_duration", "cache_retrieval_time_sec")):
             for c in CompileCounter._active:
                 c.count += 1
 
