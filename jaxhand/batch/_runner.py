@@ -75,8 +75,8 @@ def run_job(name: str, argv: list[str], job_dir: str | Path) -> dict:
     Returns:
         ``name``, ``status`` (``done`` | ``failed``), ``exit_code``, ``error`` (one line or None),
         ``wall_s``, ``jit_compiles`` and ``compile_s`` (programs this job compiled or loaded from
-        JAX's persistent compilation cache; 0 when the worker had built its structure already), ``worker`` (host:pid) and ``summary``
-        (its ``summary.json``, or None).
+        JAX's persistent compilation cache; 0 when the worker had built its structure already),
+        ``worker`` (host:pid) and ``summary`` (its ``summary.json``, or None).
     """
     import jax
 
