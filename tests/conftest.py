@@ -20,6 +20,7 @@ jax.config.update("jax_numpy_dtype_promotion", "strict")
 import jaxhand  # noqa: E402
 
 _CACHE_ENV = "JAX_COMPILATION_CACHE_DIR"
+_OWN_CACHE = pytest.StashKey[str]()   # the folder this run made (absent where the caller set one)
 
 
 def pytest_configure(config):
@@ -36,9 +37,6 @@ def pytest_unconfigure(config):
     path = config.stash.get(_OWN_CACHE, None)
     if path:
         shutil.rmtree(path, ignore_errors=True)
-
-
-_OWN_CACHE = pytest.StashKey[str]()
 
 
 @pytest.fixture(autouse=True, scope="module")
