@@ -39,9 +39,8 @@ WORKER_ENV = {
     "XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false",
 }
 ERROR_FILE, LOG_FILE = "error.json", "batch.log"
-#: jax.monitoring's events for one program built: an XLA compilation, or a load from JAX's
-#: persistent compilation cache where one is set (counted per job in the report).
-_COMPILE_EVENTS = ("/jax/core/compile/backend_compile_duration", "/jax/compilation_cache/cache_retrieval_time_sec")
+#: jax.monitoring's event for one XLA compilation (counted per job in the report).
+_COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
 _compiles = {"count": 0, "seconds": 0.0, "listening": False}
 
 
@@ -55,7 +54,7 @@ def finished_summary(job_dir: str | Path) -> dict | None:
 
 
 def _count_compiles(event: str, duration_s: float, **_) -> None:
-    if event in _COMPILE_EVENTS:
+    if event == _COMPILE_EVENT:
         _compiles["count"] += 1
         _compiles["seconds"] += duration_s
 
@@ -74,9 +73,9 @@ def run_job(name: str, argv: list[str], job_dir: str | Path) -> dict:
 
     Returns:
         ``name``, ``status`` (``done`` | ``failed``), ``exit_code``, ``error`` (one line or None),
-        ``wall_s``, ``jit_compiles`` and ``compile_s`` (programs this job compiled or loaded from
-        JAX's persistent compilation cache; 0 when the worker had built its structure already),
-        ``worker`` (host:pid) and ``summary`` (its ``summary.json``, or None).
+        ``wall_s``, ``jit_compiles`` and ``compile_s`` (XLA compilations this job caused; 0 when
+        the worker had compiled its structure already), ``worker`` (host:pid) and ``summary``
+        (its ``summary.json``, or None).
     """
     import jax
 
