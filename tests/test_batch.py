@@ -215,15 +215,17 @@ def _assert_same_outputs(out, ref):
 
 def _single_commands(argvs):
     """The single commands, each through ``jaxhand.cli.main``, in one fresh process pinned like a
-    batch worker (jaxhand.batch.WORKER_ENV): single-threaded Eigen rounds differently from the
-    multi-threaded default in the last bits, so bit-equality holds under equal settings."""
+    batch worker (jaxhand.batch.pinned_environment, which keeps the caller's XLA flags):
+    single-threaded Eigen rounds differently from the multi-threaded default in the last bits, so
+    bit-equality holds under equal settings."""
     import subprocess
     import sys
 
-    from jaxhand.batch import WORKER_ENV
+    from jaxhand.batch import pinned_environment
 
     code = "import sys, json\nfrom jaxhand.cli import main\nsys.exit(max(main(a) for a in json.loads(sys.argv[1])))"
-    env = {**os.environ, **WORKER_ENV}
+    with pinned_environment():
+        env = dict(os.environ)
     subprocess.run([sys.executable, "-c", code, json.dumps(argvs)], env=env, check=True, capture_output=True)
 
 
