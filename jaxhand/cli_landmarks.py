@@ -44,6 +44,9 @@ def register(sub) -> None:
     p.add_argument("--smooth", type=float, default=20.0, help="smoothness weight, px per rad of change per frame")
     p.add_argument("--max-frames", type=int, default=None, help="fit only the first N frames")
     p.add_argument("--steps", type=int, default=60, help="most iterations of the whole-sequence solve")
+    p.add_argument("--init", choices=("auto", "track", "paths"), default="auto",
+                   help="start of the whole-sequence solve: 'paths' chooses each finger's mirror branch from the "
+                        "whole sequence (slower), 'track' fits frame after frame, 'auto' is 'paths' (default)")
     p.add_argument("--save-model", help="write the fitted (calibrated) model to this .toml/.json file")
     p.add_argument("--no-video", action="store_true", help="skip the overlay video")
     p.set_defaults(func=run_fit_landmarks)
@@ -156,7 +159,8 @@ def run_fit_landmarks(args) -> int:
         raise InputError(f"--steps: expected >= 1, got {args.steps}")
     config = SequenceConfig(max_steps=args.steps, smooth_px_per_rad=args.smooth)
     t0 = time.perf_counter()
-    fit = fit_landmark_sequence(model, camera, landmarks, shape=None if args.no_shape else "auto", config=config)
+    fit = fit_landmark_sequence(model, camera, landmarks, shape=None if args.no_shape else "auto", config=config,
+                                init=args.init)
     fit_s = time.perf_counter() - t0
 
     out = Path(args.out)
@@ -186,6 +190,7 @@ def run_fit_landmarks(args) -> int:
             "p95_px": float(np.percentile(err[valid], 95)) if valid.any() else None,
             "mean_px": float(np.mean(err[valid])) if valid.any() else None,
             "frames_per_s": len(seq) / fit_s, "fit_s": fit_s, "timings_s": fit.timings_s,
+            "init": "paths" if "paths_s" in fit.timings_s else "track",
             "within_limits": inside, "sequence_iterations": int(fit.result.iterations),
             "sequence_converged": bool(fit.result.converged), "cost": float(fit.result.cost),
             "start_cost": float(fit.result.start_cost), "first_frame_start_costs": fit.start_costs.tolist(),

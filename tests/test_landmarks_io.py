@@ -128,7 +128,7 @@ def test_fit_landmarks_command_on_the_real_video(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     for f in ("angles.csv", "results.npz", "summary.json", "overlay.mp4", "angles.png", "camera.json"):
         assert (out / f).exists()
-    assert summary["mirrored"] is True and summary["within_limits"] is True
+    assert summary["mirrored"] is True and summary["within_limits"] is True and summary["init"] == "paths"
     # threshold: MediaPipe's own landmarks are 7-11 px from hand labels; the fit must stay well inside that
     assert summary["median_px"] < 6.0 and summary["frames"] == 6
     from jaxhand import load_model
@@ -142,10 +142,10 @@ def test_fit_landmarks_reads_the_model_handedness(tmp_path):
     for model, mirrored in (("hand27_right", False), ("hand27", True)):
         out = tmp_path / model
         assert main(["fit-landmarks", str(REAL), "--model", model, "--out", str(out), "--max-frames", "2",
-                     "--steps", "10"]) == 0
+                     "--steps", "10", "--init", "track"]) == 0
         summary = json.loads((out / "summary.json").read_text())
         assert summary["model_hand"] == ("right" if model.endswith("right") else "left")
-        assert summary["mirrored"] is mirrored
+        assert summary["mirrored"] is mirrored and summary["init"] == "track"
 
 
 def test_mediapipe_nan_points_are_masked_and_reported(tmp_path):

@@ -10,9 +10,10 @@ sequence solve a start that chooses the branch from the whole sequence:
    any caller candidates, such as the frame-by-frame track), one batched solve of frames x starts
    problems;
 2. the joints split into independent blocks (:func:`independent_blocks`): two joints are in one
-   block when some landmark moves with both. With the palm fixed each finger is a block, so each
-   finger takes its branch from whichever start found it, whatever the others did; a free palm
-   moves every landmark, so all joints form one block;
+   block when some landmark moves with both. Each finger is a block, so each finger takes its
+   branch from whichever start found it, whatever the others did. A free palm moves every
+   landmark; its entries belong to no block and ride on the first candidate (the frame-by-frame
+   track), and each candidate's finger is judged by its own fit, palm included;
 3. per block, the path through the frames' candidates that minimises the landmark cost of the
    block's points and its fingers' DIP-PIP term plus the first-difference smoothness term of
    :class:`~jaxhand.landmarks.SequenceConfig` (the sequence objective without its shape terms),
@@ -74,9 +75,11 @@ def joint_starts(model: Model, fractions=START_FRACTIONS, *, draws: int = 16, se
 
 
 def independent_blocks(model: Model, lmap: LandmarkMap) -> list[np.ndarray]:
-    """The q entries in groups no landmark couples (connected components of "moves a common
-    point"); q entries that move no landmark are left out. Each group: sorted q indices."""
-    dep = _dependence(model, lmap)                     # (21, n_q)
+    """The joint entries in groups no landmark couples (connected components of "moves a common
+    point"), given the palm: a free palm's entries, which move every landmark, and q entries
+    that move no landmark are left out. Each group: sorted q indices."""
+    dep = np.array(_dependence(model, lmap))           # (21, n_q)
+    dep[:, :model.n_base_q] = False                    # given the palm, each finger is a group
     parent = list(range(model.n_q))
 
     def root(i):

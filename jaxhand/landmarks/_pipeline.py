@@ -10,11 +10,11 @@ Steps of :func:`fit_landmark_sequence`:
    the camera (8 starts); the lowest cost wins;
 2. every later frame from the previous result (one compiled ``lax.scan``; a frame without
    landmarks keeps the previous state);
-2b. (``init="paths"``, the default for a model whose palm does not move) every frame also from
-   fixed joint starts, and per independent block of joints (each finger, with the palm fixed)
-   the smoothest low-cost path through the candidates (:func:`~jaxhand.landmarks.smoothest_paths`),
-   one per smoothness scale of ``path_scales``: one camera's mirror branches are chosen from the
-   whole sequence, not from frame 0;
+2b. (``init="paths"``, the default) every frame also from fixed joint starts, and per
+   independent block of joints (each finger, given the palm) the smoothest low-cost path through
+   the candidates (:func:`~jaxhand.landmarks.smoothest_paths`), one per smoothness scale of
+   ``path_scales``: one camera's mirror branches are chosen from the whole sequence, not from
+   frame 0;
 3. :func:`~jaxhand.landmarks.fit_sequence` over all frames from each path, with the temporal
    smoothness term and (with ``shape``) one hand shape shared by every frame. With several
    paths, each block keeps the solve of least cost (:func:`~jaxhand.landmarks.block_costs`, with
@@ -50,8 +50,9 @@ __all__ = ["SEQUENCE_INITS", "PATH_SCALES", "initial_starts", "track_landmarks",
 
 
 #: How :func:`fit_landmark_sequence` starts the whole-sequence solve: ``"track"`` (frame by
-#: frame), ``"paths"`` (also the smoothest paths through fixed starts), ``"auto"`` (``"paths"``
-#: unless the model's base is free: that case is measured only with ``"track"``).
+#: frame), ``"paths"`` (also the smoothest paths through fixed starts), ``"auto"`` (``"paths"``;
+#: on a free palm too since the real video's fingers were measured in their mirror branches with
+#: ``"track"``, benchmarks/README.md 2026-12-07).
 SEQUENCE_INITS = ("auto", "track", "paths")
 
 #: Smoothness scales of the paths of ``init="paths"`` (:func:`~jaxhand.landmarks.smoothest_paths`):
@@ -225,7 +226,7 @@ def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape:
     if init not in SEQUENCE_INITS:
         raise InputError(f"init: expected one of {', '.join(SEQUENCE_INITS)}, got {init!r}")
     if init == "auto":
-        init = "track" if model.base_kind == "free" else "paths"
+        init = "paths"
     lmap = landmark_map(model) if lmap is None else lmap
     rig = as_rig(cameras)
     if landmarks.px.ndim != 4:
