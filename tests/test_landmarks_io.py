@@ -121,14 +121,15 @@ def test_fit_landmarks_command_error_is_one_line(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_fit_landmarks_command_on_the_real_video(tmp_path):
-    # The first 6 frames only (the whole video is benchmarks/landmarks_real.md's job).
+    # The first 6 frames only (the whole video is benchmarks/real_video.py's job), frame by
+    # frame: the default's paths are tests/test_landmarks_paths.py's (and twice as slow here).
     out = tmp_path / "out"
     assert main(["fit-landmarks", str(REAL), "--out", str(out), "--max-frames", "6", "--steps", "20",
-                 "--save-model", str(tmp_path / "hand.toml")]) == 0
+                 "--save-model", str(tmp_path / "hand.toml"), "--init", "track"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     for f in ("angles.csv", "results.npz", "summary.json", "overlay.mp4", "angles.png", "camera.json"):
         assert (out / f).exists()
-    assert summary["mirrored"] is True and summary["within_limits"] is True and summary["init"] == "paths"
+    assert summary["mirrored"] is True and summary["within_limits"] is True and summary["init"] == "track"
     # threshold: MediaPipe's own landmarks are 7-11 px from hand labels; the fit must stay well inside that
     assert summary["median_px"] < 6.0 and summary["frames"] == 6
     from jaxhand import load_model

@@ -177,4 +177,5 @@ def test_the_real_videos_curling_fingers_leave_their_mirror_branch_on_a_free_pal
         fit = fit_landmark_sequence(m, camera, seq.to_landmarks(), shape="auto", init=init, path_scales=(1.0,))
         d = np.linalg.norm(projected_landmarks(fit.model, camera, fit.q) - seq.px, axis=-1)
         on[init] = int(np.all(d <= 15.0, axis=-1).sum())
+        assert ("paths_s" in fit.timings_s) == (init == "auto")
     assert on == {"track": 4, "auto": 20}, on
