@@ -190,7 +190,7 @@ def run_fit_landmarks(args) -> int:
             "p95_px": float(np.percentile(err[valid], 95)) if valid.any() else None,
             "mean_px": float(np.mean(err[valid])) if valid.any() else None,
             "frames_per_s": len(seq) / fit_s, "fit_s": fit_s, "timings_s": fit.timings_s,
-            "init": "paths" if "paths_s" in fit.timings_s else "track",
+            "init": fit.init,
             "within_limits": inside, "sequence_iterations": int(fit.result.iterations),
             "sequence_converged": bool(fit.result.converged), "cost": float(fit.result.cost),
             "start_cost": float(fit.result.start_cost), "first_frame_start_costs": fit.start_costs.tolist(),

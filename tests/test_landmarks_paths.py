@@ -166,7 +166,13 @@ def test_the_real_videos_curling_fingers_leave_their_mirror_branch_on_a_free_pal
     # branch from the whole slice and put every frame on the fingers.
     from pathlib import Path
 
-    from jaxhand.landmarks import camera_from_fov, fit_landmark_sequence, load_landmarks, projected_landmarks
+    from jaxhand.landmarks import (
+        ON_FINGERS_PX,
+        camera_from_fov,
+        fit_landmark_sequence,
+        load_landmarks,
+        projected_landmarks,
+    )
 
     seq = load_landmarks(Path(__file__).resolve().parent.parent / "data" / "real" / "human_hand_video.mediapipe.json")
     seq = seq.slice(54, 74)
@@ -176,6 +182,6 @@ def test_the_real_videos_curling_fingers_leave_their_mirror_branch_on_a_free_pal
     for init in ("track", "auto"):
         fit = fit_landmark_sequence(m, camera, seq.to_landmarks(), shape="auto", init=init, path_scales=(1.0,))
         d = np.linalg.norm(projected_landmarks(fit.model, camera, fit.q) - seq.px, axis=-1)
-        on[init] = int(np.all(d <= 15.0, axis=-1).sum())
+        on[init] = int(np.all(d <= ON_FINGERS_PX, axis=-1).sum())
         assert ("paths_s" in fit.timings_s) == (init == "auto")
     assert on == {"track": 4, "auto": 20}, on

@@ -189,6 +189,7 @@ class SequenceFit:
         result: the :class:`SequenceResult` of the whole-sequence solve (None without it).
         start_costs: (starts,) frame 0's cost from each start; best_start: the chosen one.
         timings_s: seconds per stage (first frame, frame by frame, sequence), compile included.
+        init: the start that ran, ``"track"`` or ``"paths"`` ("auto" resolved).
     """
 
     q: np.ndarray
@@ -200,6 +201,7 @@ class SequenceFit:
     start_costs: np.ndarray
     best_start: int
     timings_s: dict
+    init: str
 
 
 def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape: HandShape | None | str = "auto",
@@ -266,7 +268,7 @@ def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape:
     q_init = paths[0]
     if not sequence:
         return SequenceFit(q=q_init, q_init=q_init, model=model, theta=np.zeros(0), shape=None, result=None,
-                           start_costs=costs, best_start=best, timings_s=times)
+                           start_costs=costs, best_start=best, timings_s=times, init=init)
     t = time.perf_counter()
     fits = [fit_sequence(model, rig, landmarks, p, shape=shape, config=config, lmap=lmap) for p in paths]
     res = min(fits, key=lambda r: float(r.cost))
@@ -289,7 +291,7 @@ def fit_landmark_sequence(model: Model, cameras, landmarks: Landmarks, *, shape:
     theta = np.asarray(res.theta)
     fitted = model if shape is None else apply_shape(model, shape, jnp.asarray(theta))
     return SequenceFit(q=np.asarray(res.q), q_init=q_init, model=fitted, theta=theta, shape=shape, result=res,
-                       start_costs=costs, best_start=best, timings_s=times)
+                       start_costs=costs, best_start=best, timings_s=times, init=init)
 
 
 def calibrate_landmarks(model: Model, cameras, landmarks: Landmarks, q_init, *, palm: bool = True,
