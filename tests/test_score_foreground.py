@@ -298,6 +298,28 @@ def test_sequence_background_drops_a_mode_the_tracked_model_covers():
     assert known[0, 0] and abs(background[0, 0] - (frames[3][0, 0] / 2 + frames[4][0, 0] / 2)) < 1e-4
 
 
+def test_a_narrow_fist_beside_the_fingers_first_place_is_dropped_too():
+    """A curled finger is a few pixels wide and may rest a little beyond where a finger lay at
+    the first pose: a pixel 1 px inside the tracked silhouette counts as covered, anywhere within
+    the first silhouette's margin; 3 px in, none of an 8-px-wide fist would be."""
+    frames, hands, _, _ = _moving_finger_frames(cover_from=3)
+    fist = np.zeros_like(hands[0])
+    fist[8:18, 6:14] = True   # the finger lay over columns 5-11 at the first frame
+    for k in range(3, len(frames)):
+        frames[k][fist] = 120
+        hands[k] = hands[k] | fist
+    shares = []
+    for cover_px in (1, 3):
+        model = SequenceBackground(frames, hands[0], cover_px=cover_px)
+        assert model.mask(frames[5])[fist].mean() == 0.0   # the commonest grey there: taken for background
+        for k in (3, 4):
+            model.observe(frames[k], hands[k])
+        mask = model.mask(frames[5])
+        shares.append((mask[fist].mean(), mask[8:18, 12:14].mean(), model.doubtful(frames[5], mask)[fist].mean()))
+    assert shares[0] == pytest.approx((0.55, 0.3, 0.55))   # never seen free: doubtful, out of the scores
+    assert shares[1] == (0.0, 0.0, 0.0)
+
+
 def test_a_mode_dropped_under_a_lagging_model_is_doubtful_and_left_out_of_the_scores():
     """A tracked model that lags over the finger's first place covers background that matches the
     learned mode, so the mode is dropped as a hand part that stayed put and those pixels turn

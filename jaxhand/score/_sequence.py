@@ -13,9 +13,11 @@ A pixel's background grey is known in one of two ways, the first preferred:
 Where the first frame shows background (outside its silhouette grown by ``margin_px``), both
 count only greys that agree with it: a hand that comes to rest there, a little beyond the
 tracked model's outline, is neither the commonest grey nor "seen" background. A mode the
-tracked model has been seen covering (the pixel matched it deep inside the model's silhouette on
-``min_covered`` frames) was a hand part that stayed put, a fist over the fingers' first place, and
-is dropped.
+tracked model has been seen covering (the pixel matched it at least ``cover_px`` inside the model's
+silhouette on ``min_covered`` frames, anywhere the first silhouette grown by ``margin_px`` lay) was a
+hand part that stayed put, a fist over the fingers' first place, and is dropped. A curled fingertip
+lies within a few pixels of the model's outline and may rest between the first pose's fingers, so
+the test reaches that far.
 
 On colour frames (:class:`ColourSequenceBackground`) each of the three channels learns its own
 background so, and a pixel is foreground where any channel's test finds it: a hand and a wall of
@@ -106,18 +108,19 @@ class SequenceBackground(AbstractForeground):
     Attributes:
         noise: the frames' noise level (grey levels), floored at ``min_noise``.
         mode: (H, W) the anchored mode of each pixel (grey levels).
-        k, patch_level, fill_px, margin_px, open_px, min_covered: see :meth:`__init__`.
+        k, patch_level, fill_px, margin_px, cover_px, open_px, min_covered: see :meth:`__init__`.
     """
 
     def __init__(self, frames, hand_mask, *, k: float = 4.0, patch_level: float = 3.0, fill_px: int = 100,
-                 margin_px: int = 3, rim_px: int = 0, min_frames: int = 5, min_covered: int = 2,
+                 margin_px: int = 3, cover_px: int = 1, rim_px: int = 0, min_frames: int = 5, min_covered: int = 2,
                  min_noise: float = 3.0, open_px: int = 1, anchor_clear: bool = True):
         """``frames``: (N, H, W[, 3]) frames spread over the sequence, the first frame first;
         ``hand_mask``: (H, W) bool, the model's silhouette at the first frame's known pose;
         ``k``: per-pixel difference (noise levels); ``patch_level``: 3x3 mean squared difference
         (squared noise levels; 0: off); ``fill_px``: largest hole filled (px; 0: none);
         ``margin_px``: how far the tracked silhouette is grown before its outside counts as seen
-        background; ``rim_px``: how far inside the first silhouette's outline the first frame
+        background; ``cover_px``: how far inside the tracked silhouette a pixel must lie to count
+        as covered by it (``min_covered``); ``rim_px``: how far inside the first silhouette's outline the first frame
         starts to count as hand (0: from the outline; a static part's outline then follows the
         model's); ``min_frames``: frames a mode needs; ``min_covered``: frames a mode may
         match under the tracked model before it is dropped; ``anchor_clear``: where the first
@@ -132,10 +135,12 @@ class SequenceBackground(AbstractForeground):
             raise InputError(f"hand_mask: expected shape {stack.shape[1:]} (the frames'), got {hand.shape}")
         self.k, self.patch_level, self.fill_px = float(k), float(patch_level), int(fill_px)
         self.margin_px, self.open_px, self.min_covered = int(margin_px), int(open_px), int(min_covered)
+        self.cover_px = int(cover_px)
         self.noise = _noise(stack, hand, min_noise)
         self._core = cv2.erode(hand.astype(np.uint8), _disc(rim_px)) > 0 if rim_px > 0 else hand
         self._first = stack[0]
         self._clear = _outside(hand, self.margin_px) if anchor_clear else None
+        self._near_first = ~_outside(hand, self.margin_px)   # where a mode may be a hand part's grey
         self.mode, self._mode_known = _anchored_mode(stack, self._core, self.noise, min_frames, self._clear)
         self._seen_sum = np.zeros(hand.shape, np.float64)
         self._seen = np.zeros(hand.shape, np.int32)
@@ -152,8 +157,8 @@ class SequenceBackground(AbstractForeground):
             free &= ~self._clear | (np.abs(grey - self._first) <= _AGREE * self.noise)
         self._seen_sum += np.where(free, grey, 0.0)
         self._seen += free
-        inside = cv2.erode(sil.astype(np.uint8), _disc(self.margin_px)) > 0
-        self._covered += inside & self._core & (np.abs(grey - self.mode) <= _AGREE * self.noise)
+        inside = cv2.erode(sil.astype(np.uint8), _disc(self.cover_px)) > 0 if self.cover_px > 0 else sil
+        self._covered += inside & self._near_first & (np.abs(grey - self.mode) <= _AGREE * self.noise)
 
     def background(self) -> tuple[Float[np.ndarray, "H W"], Bool[np.ndarray, "H W"]]:
         """The background greys so far and where they are known."""
