@@ -318,6 +318,10 @@ def test_a_narrow_fist_beside_the_fingers_first_place_is_dropped_too():
         shares.append((mask[fist].mean(), mask[8:18, 12:14].mean(), model.doubtful(frames[5], mask)[fist].mean()))
     assert shares[0] == pytest.approx((0.55, 0.3, 0.55))   # never seen free: doubtful, out of the scores
     assert shares[1] == (0.0, 0.0, 0.0)
+    with pytest.raises(ValueError, match=r"cover_px: expected a whole number of pixels >= 0, got -1"):
+        SequenceBackground(frames, hands[0], cover_px=-1)
+    with pytest.raises(ValueError, match=r"margin_px: expected a whole number of pixels >= 0, got -2"):
+        SequenceBackground(frames, hands[0], margin_px=-2)
 
 
 def test_a_mode_dropped_under_a_lagging_model_is_doubtful_and_left_out_of_the_scores():

@@ -134,6 +134,9 @@ class SequenceBackground(AbstractForeground):
         if hand.shape != stack.shape[1:]:
             raise InputError(f"hand_mask: expected shape {stack.shape[1:]} (the frames'), got {hand.shape}")
         self.k, self.patch_level, self.fill_px = float(k), float(patch_level), int(fill_px)
+        for name, value in (("margin_px", margin_px), ("cover_px", cover_px)):
+            if value < 0:
+                raise InputError(f"{name}: expected a whole number of pixels >= 0, got {value!r}")
         self.margin_px, self.open_px, self.min_covered = int(margin_px), int(open_px), int(min_covered)
         self.cover_px = int(cover_px)
         self.noise = _noise(stack, hand, min_noise)
