@@ -142,8 +142,8 @@ class SequenceBackground(AbstractForeground):
         self.noise = _noise(stack, hand, min_noise)
         self._core = cv2.erode(hand.astype(np.uint8), _disc(rim_px)) > 0 if rim_px > 0 else hand
         self._first = stack[0]
-        self._clear = _outside(hand, self.margin_px) if anchor_clear else None
         self._near_first = ~_outside(hand, self.margin_px)   # where a mode may be a hand part's grey
+        self._clear = ~self._near_first if anchor_clear else None
         self.mode, self._mode_known = _anchored_mode(stack, self._core, self.noise, min_frames, self._clear)
         self._seen_sum = np.zeros(hand.shape, np.float64)
         self._seen = np.zeros(hand.shape, np.int32)
@@ -160,7 +160,7 @@ class SequenceBackground(AbstractForeground):
             free &= ~self._clear | (np.abs(grey - self._first) <= _AGREE * self.noise)
         self._seen_sum += np.where(free, grey, 0.0)
         self._seen += free
-        inside = cv2.erode(sil.astype(np.uint8), _disc(self.cover_px)) > 0 if self.cover_px > 0 else sil
+        inside = cv2.erode(sil.astype(np.uint8), _disc(self.cover_px)) > 0
         self._covered += inside & self._near_first & (np.abs(grey - self.mode) <= _AGREE * self.noise)
 
     def background(self) -> tuple[Float[np.ndarray, "H W"], Bool[np.ndarray, "H W"]]:
